@@ -1,0 +1,64 @@
+//! Every message that crosses an omnibench wire, and how it is framed.
+//!
+//! * [`serial`]: host <-> master over a UART (or a pseudo-terminal in tests). Frames are
+//!   `COBS(postcard(message) ++ CRC-32)` followed by a `0x00` delimiter.
+//! * [`spi`]: master <-> slave. Every transaction moves one fixed-size frame each way:
+//!   `postcard(message)`, zero padding, CRC-16 in the last two bytes.
+//!
+//! The firmware and the host link this same crate, so both sides agree byte for byte; the
+//! golden-byte tests in `tests/golden.rs` pin the encoding, and [`schema_fingerprint`] lets the
+//! host detect a master built from a different version of these types.
+//!
+//! Units on the wire are integers: micrometres, micrometres per second, microseconds, and
+//! headings as binary angles (2^32 = one turn, so they wrap for free).
+#![cfg_attr(not(test), no_std)]
+
+pub mod serial;
+pub mod spi;
+mod units;
+
+pub use units::{BinaryAngle, Point, Pose};
+
+/// Version of the wire protocol described by this crate. Bumped on any incompatible change.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// A CRC-32 over the postcard schemas of every message type in this crate.
+///
+/// The master reports it in its hello reply; the host compares it with its own. Equal
+/// fingerprints mean both were built from structurally identical message types (field
+/// names, types and order), whatever `PROTOCOL_VERSION` says.
+pub fn schema_fingerprint() -> u32 {
+    use postcard_schema::Schema;
+    let mut digest = FINGERPRINT_CRC.digest();
+    for schema in [
+        serial::HostToMaster::SCHEMA,
+        serial::MasterToHost::SCHEMA,
+        spi::MasterFrame::SCHEMA,
+        spi::SlaveFrame::SCHEMA,
+    ] {
+        // A flavor that feeds the digest directly: no buffer, works the same on the firmware.
+        let flavor = DigestFlavor(&mut digest);
+        // Serialising a schema into a digest cannot fail: the flavor never refuses a byte.
+        let _ = postcard::serialize_with_flavor(schema, flavor);
+    }
+    digest.finalize()
+}
+
+const FINGERPRINT_CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+struct DigestFlavor<'a, 'b>(&'a mut crc::Digest<'b, u32>);
+
+impl postcard::ser_flavors::Flavor for DigestFlavor<'_, '_> {
+    type Output = ();
+    fn try_push(&mut self, data: u8) -> postcard::Result<()> {
+        self.0.update(&[data]);
+        Ok(())
+    }
+    fn try_extend(&mut self, data: &[u8]) -> postcard::Result<()> {
+        self.0.update(data);
+        Ok(())
+    }
+    fn finalize(self) -> postcard::Result<()> {
+        Ok(())
+    }
+}

@@ -1,0 +1,223 @@
+//! Host <-> master messages and their serial framing.
+//!
+//! Frame on the wire: `COBS(postcard(message) ++ CRC-32/ISO-HDLC little-endian) ++ [0x00]`.
+//! COBS guarantees `0x00` only appears as the delimiter, so a receiver that starts mid-stream
+//! (or loses bytes) resynchronises at the next zero; the CRC catches everything else. A frame
+//! that fails any check is counted by the receiver and dropped, never acted on.
+
+use crate::{BinaryAngle, Point, Pose};
+use postcard::experimental::max_size::MaxSize;
+use postcard_schema::Schema;
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+
+/// Largest postcard payload of any serial message (checked against every type below).
+pub const MAX_PAYLOAD: usize = 128;
+/// Largest frame on the wire: payload, CRC, COBS overhead, delimiter.
+pub const MAX_FRAME: usize = cobs::max_encoding_length(MAX_PAYLOAD + 4) + 1;
+
+const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// What the host asks of the master.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum HostToMaster {
+    /// Start of a session. The master answers with [`MasterToHost::HelloReply`].
+    Hello { protocol_version: u16 },
+    /// The robot is at this pose now (also resets the slave's odometry to it).
+    SetPose(Pose),
+    /// Follow a target that moves along a straight segment (seed 004's pursuit).
+    /// A fixed goal is a segment with `from == to`.
+    FollowTarget(MovingTarget),
+    /// Stop the motors and forget the target.
+    Stop,
+    /// "Still here". The master stops the motors when the host is silent for too long.
+    Heartbeat,
+}
+
+/// A target that starts at `from` when the command arrives and moves towards `to` at
+/// `target_speed_um_s`, stopping there. The robot heads at the target's current position at up
+/// to `robot_speed_um_s`, holding `heading`.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MovingTarget {
+    pub from: Point,
+    pub to: Point,
+    pub target_speed_um_s: u32,
+    pub robot_speed_um_s: u32,
+    pub heading: BinaryAngle,
+}
+
+/// What the master reports to the host.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum MasterToHost {
+    HelloReply {
+        protocol_version: u16,
+        /// [`crate::schema_fingerprint`] of the master's build.
+        schema_fingerprint: u32,
+    },
+    Telemetry(Telemetry),
+    /// A command was well-framed but not acceptable; the motors were stopped.
+    Rejected(RejectReason),
+}
+
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RejectReason {
+    /// Hello carried another protocol version.
+    ProtocolVersion { master: u16, host: u16 },
+    /// A speed of zero or above the robot's limit, or a target out of range.
+    InvalidTarget,
+}
+
+/// The master's periodic report.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Telemetry {
+    /// Master clock, microseconds since boot.
+    pub time_us: u64,
+    /// Slave clock at the odometry update that produced `slave_pose`.
+    pub slave_time_us: u32,
+    /// The slave's odometry, as last received over SPI.
+    pub slave_pose: Pose,
+    /// The master's own estimate (slave pose propagated with the commanded motion).
+    pub master_pose: Pose,
+    /// Wheel speed commands, micrometres per second, wheels 1..3.
+    pub wheel_cmd_um_s: [i32; 3],
+    /// PWM duty per wheel, per mille, signed.
+    pub duty_permille: [i16; 3],
+    /// [`status`] flags.
+    pub status: u16,
+    pub counters: LinkCounters,
+}
+
+/// Frame counters of both links as the master sees them (all wrap at `u32::MAX`).
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinkCounters {
+    /// SPI frames from the slave that passed the CRC.
+    pub spi_ok: u32,
+    /// SPI frames from the slave that failed the CRC or did not decode, plus bus errors.
+    pub spi_rejected: u32,
+    /// Master frames the slave reports as rejected (its own CRC check).
+    pub slave_rx_rejected: u32,
+    /// Serial frames from the host that were accepted.
+    pub serial_ok: u32,
+    /// Serial frames from the host that failed COBS, CRC, decoding or length.
+    pub serial_rejected: u32,
+}
+
+/// Bits of [`Telemetry::status`].
+pub mod status {
+    /// A target is being followed.
+    pub const FOLLOWING: u16 = 1 << 0;
+    /// The (stopped) target has been reached.
+    pub const ARRIVED: u16 = 1 << 1;
+    /// Motors are being driven.
+    pub const MOTORS_ON: u16 = 1 << 2;
+    /// No valid slave frame for longer than the link timeout: motors stopped.
+    pub const SLAVE_LOST: u16 = 1 << 3;
+    /// No host message for longer than the host timeout: motors stopped.
+    pub const HOST_LOST: u16 = 1 << 4;
+    /// The last command was rejected: motors stopped.
+    pub const COMMAND_REJECTED: u16 = 1 << 5;
+    /// The slave reports a fault (see `spi::slave_status`).
+    pub const SLAVE_FAULT: u16 = 1 << 6;
+}
+
+const _: () = assert!(HostToMaster::POSTCARD_MAX_SIZE <= MAX_PAYLOAD);
+const _: () = assert!(MasterToHost::POSTCARD_MAX_SIZE <= MAX_PAYLOAD);
+
+/// Why a frame could not be encoded or was dropped on receipt.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FrameError {
+    /// More bytes than [`MAX_FRAME`] arrived without a delimiter (or the output is too small).
+    Overflow,
+    /// The bytes between delimiters are not valid COBS.
+    Cobs,
+    /// The frame is too short to hold a CRC.
+    Short,
+    /// The CRC does not match.
+    Crc,
+    /// The CRC matched but the payload is not a valid message (or has trailing bytes).
+    Decode,
+}
+
+/// Encode `msg` as one delimited frame into `out`; returns the bytes to send.
+pub fn encode<'a, T: Serialize>(msg: &T, out: &'a mut [u8]) -> Result<&'a [u8], FrameError> {
+    let mut raw = [0u8; MAX_PAYLOAD + 4];
+    let len = postcard::to_slice(msg, &mut raw[..MAX_PAYLOAD])
+        .map_err(|_| FrameError::Overflow)?
+        .len();
+    let crc = CRC.checksum(&raw[..len]);
+    raw[len..len + 4].copy_from_slice(&crc.to_le_bytes());
+    let n = cobs::try_encode(&raw[..len + 4], out).map_err(|_| FrameError::Overflow)?;
+    let delim = out.get_mut(n).ok_or(FrameError::Overflow)?;
+    *delim = 0;
+    Ok(&out[..n + 1])
+}
+
+/// Reassembles frames from a byte stream, one byte or chunk at a time, in constant memory.
+pub struct FrameDecoder {
+    buf: [u8; MAX_FRAME],
+    len: usize,
+    /// Set after an overflow: drop bytes until the next delimiter.
+    discarding: bool,
+}
+
+impl Default for FrameDecoder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FrameDecoder {
+    pub const fn new() -> Self {
+        FrameDecoder {
+            buf: [0; MAX_FRAME],
+            len: 0,
+            discarding: false,
+        }
+    }
+
+    /// Feed one byte. Returns `Some` when a delimiter closes a frame: the message, or why it
+    /// was dropped. Empty frames (two delimiters in a row, used to flush a line) yield `None`.
+    pub fn push<T: DeserializeOwned>(&mut self, byte: u8) -> Option<Result<T, FrameError>> {
+        if byte != 0 {
+            if self.discarding {
+                return None;
+            }
+            if self.len == self.buf.len() {
+                self.discarding = true;
+                self.len = 0;
+                return Some(Err(FrameError::Overflow));
+            }
+            self.buf[self.len] = byte;
+            self.len += 1;
+            return None;
+        }
+        let len = core::mem::replace(&mut self.len, 0);
+        if core::mem::replace(&mut self.discarding, false) || len == 0 {
+            return None;
+        }
+        Some(decode_frame(&mut self.buf[..len]))
+    }
+}
+
+/// Decode one frame's bytes (without the delimiter), in place.
+pub fn decode_frame<T: DeserializeOwned>(frame: &mut [u8]) -> Result<T, FrameError> {
+    let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Cobs)?;
+    if n < 4 {
+        return Err(FrameError::Short);
+    }
+    let (payload, crc) = frame[..n].split_at(n - 4);
+    let crc = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
+    if CRC.checksum(payload) != crc {
+        return Err(FrameError::Crc);
+    }
+    match postcard::take_from_bytes::<T>(payload) {
+        Ok((msg, [])) => Ok(msg),
+        _ => Err(FrameError::Decode),
+    }
+}
