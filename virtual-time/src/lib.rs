@@ -1,0 +1,280 @@
+//! Virtual time for running embassy firmware logic on the host.
+//!
+//! * An `embassy-time` driver whose clock only moves when the simulation says so, so runs are
+//!   deterministic and as fast as the CPU allows. The clock is **per thread**: each test (or
+//!   emulation) on its own thread has its own clock and timer queue, which sidesteps the
+//!   one-driver-per-process rule of embassy-time without tests stepping on each other.
+//! * A small single-thread executor that polls the firmware's async tasks until they all wait,
+//!   and a [`Simulation`] that then jumps the clock to the next timer deadline.
+//!
+//! Link this crate into every host binary that runs firmware code (and nothing else that
+//! provides an embassy-time driver: no `std` or `mock-driver` features anywhere).
+
+use std::cell::{Cell, RefCell};
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::task::{Context, Poll, Wake, Waker};
+
+use embassy_time::{Duration, Instant};
+
+struct Clock {
+    now: u64,
+    /// Pending wake-ups. Small (one entry per sleeping task), so a Vec beats a heap here.
+    queue: Vec<(u64, Waker)>,
+}
+
+thread_local! {
+    static CLOCK: RefCell<Clock> = const { RefCell::new(Clock { now: 0, queue: Vec::new() }) };
+    static ACTIVE: Cell<bool> = const { Cell::new(false) };
+}
+
+struct VirtualDriver;
+
+impl embassy_time_driver::Driver for VirtualDriver {
+    fn now(&self) -> u64 {
+        CLOCK.with(|c| c.borrow().now)
+    }
+
+    fn schedule_wake(&self, at: u64, waker: &Waker) {
+        CLOCK.with(|c| {
+            let mut c = c.borrow_mut();
+            // A timer re-registers on every poll; keep one entry per waker, the earliest.
+            if let Some(e) = c.queue.iter_mut().find(|(_, w)| w.will_wake(waker)) {
+                e.0 = e.0.min(at);
+            } else {
+                c.queue.push((at, waker.clone()));
+            }
+        });
+    }
+}
+
+embassy_time_driver::time_driver_impl!(static DRIVER: VirtualDriver = VirtualDriver);
+
+/// Ticks per second of the embassy clock (1 MHz: one tick is a microsecond).
+pub const TICK_HZ: u64 = embassy_time_driver::TICK_HZ;
+
+struct TaskWaker(AtomicBool);
+
+impl Wake for TaskWaker {
+    fn wake(self: Arc<Self>) {
+        self.0.store(true, Ordering::Release);
+    }
+    fn wake_by_ref(self: &Arc<Self>) {
+        self.0.store(true, Ordering::Release);
+    }
+}
+
+struct Task<'a> {
+    future: Pin<Box<dyn Future<Output = ()> + 'a>>,
+    woken: Arc<TaskWaker>,
+    waker: Waker,
+    done: bool,
+}
+
+/// Why a [`Simulation`] could not start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AlreadyRunning;
+
+impl std::fmt::Display for AlreadyRunning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a virtual-time simulation is already running on this thread")
+    }
+}
+
+impl std::error::Error for AlreadyRunning {}
+
+/// Owns this thread's virtual clock and the tasks running on it.
+pub struct Simulation<'a> {
+    tasks: Vec<Task<'a>>,
+    polls: u64,
+}
+
+impl<'a> Simulation<'a> {
+    /// Start a simulation at time zero. One per thread at a time: the clock is shared by
+    /// everything on the thread.
+    pub fn new() -> Result<Self, AlreadyRunning> {
+        if ACTIVE.with(|a| a.replace(true)) {
+            return Err(AlreadyRunning);
+        }
+        CLOCK.with(|c| {
+            let mut c = c.borrow_mut();
+            c.now = 0;
+            c.queue.clear();
+        });
+        Ok(Simulation {
+            tasks: Vec::new(),
+            polls: 0,
+        })
+    }
+
+    /// Add a task. Tasks are polled in the order they were spawned (deterministic).
+    pub fn spawn(&mut self, future: impl Future<Output = ()> + 'a) {
+        let woken = Arc::new(TaskWaker(AtomicBool::new(true)));
+        let waker = Waker::from(woken.clone());
+        self.tasks.push(Task {
+            future: Box::pin(future),
+            woken,
+            waker,
+            done: false,
+        });
+    }
+
+    /// The current virtual time.
+    pub fn now(&self) -> Instant {
+        Instant::now()
+    }
+
+    /// Poll every woken task, repeatedly, until none is woken. Returns the number of polls.
+    pub fn run_until_idle(&mut self) -> u64 {
+        let mut polls = 0;
+        loop {
+            let mut progressed = false;
+            for t in self.tasks.iter_mut().filter(|t| !t.done) {
+                if t.woken.0.swap(false, Ordering::Acquire) {
+                    progressed = true;
+                    polls += 1;
+                    let mut cx = Context::from_waker(&t.waker);
+                    if let Poll::Ready(()) = t.future.as_mut().poll(&mut cx) {
+                        t.done = true;
+                    }
+                }
+            }
+            if !progressed {
+                break;
+            }
+        }
+        self.polls += polls;
+        polls
+    }
+
+    /// The earliest pending timer deadline, if any task sleeps on one.
+    pub fn next_deadline(&self) -> Option<Instant> {
+        CLOCK
+            .with(|c| c.borrow().queue.iter().map(|(at, _)| *at).min())
+            .map(Instant::from_ticks)
+    }
+
+    /// Run the tasks up to time `until`: jump from deadline to deadline, waking the sleepers
+    /// and letting everything settle at each one, then set the clock to `until`.
+    pub fn run_until(&mut self, until: Instant) {
+        self.run_until_idle();
+        loop {
+            match self.next_deadline() {
+                Some(at) if at <= until => {
+                    self.set_clock(at.as_ticks().max(Instant::now().as_ticks()));
+                    self.run_until_idle();
+                }
+                _ => break,
+            }
+        }
+        self.set_clock(until.as_ticks().max(Instant::now().as_ticks()));
+        self.run_until_idle();
+    }
+
+    /// Run for `d` of virtual time.
+    pub fn run_for(&mut self, d: Duration) {
+        self.run_until(Instant::now() + d);
+    }
+
+    /// Total task polls so far (a cost measure that does not depend on the machine).
+    pub fn polls(&self) -> u64 {
+        self.polls
+    }
+
+    /// Whether every task has finished.
+    pub fn all_done(&self) -> bool {
+        self.tasks.iter().all(|t| t.done)
+    }
+
+    fn set_clock(&mut self, ticks: u64) {
+        let due: Vec<Waker> = CLOCK.with(|c| {
+            let mut c = c.borrow_mut();
+            c.now = ticks;
+            let mut due = Vec::new();
+            c.queue.retain(|(at, w)| {
+                if *at <= ticks {
+                    due.push(w.clone());
+                    false
+                } else {
+                    true
+                }
+            });
+            due
+        });
+        // Wake outside the borrow: a waker may re-enter the driver.
+        due.into_iter().for_each(Waker::wake);
+    }
+}
+
+impl Drop for Simulation<'_> {
+    fn drop(&mut self) {
+        // Drop the tasks (and with them their timers) before releasing the clock.
+        self.tasks.clear();
+        CLOCK.with(|c| c.borrow_mut().queue.clear());
+        ACTIVE.with(|a| a.set(false));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use embassy_time::{Ticker, Timer};
+    use std::rc::Rc;
+
+    #[test]
+    fn timers_fire_at_their_virtual_instants_in_order() {
+        let log = Rc::new(RefCell::new(Vec::new()));
+        let mut sim = Simulation::new().unwrap();
+        for (name, ms) in [("b", 30u64), ("a", 10)] {
+            let log = log.clone();
+            sim.spawn(async move {
+                Timer::after_millis(ms).await;
+                log.borrow_mut().push((name, Instant::now().as_micros()));
+            });
+        }
+        sim.run_for(Duration::from_secs(1));
+        assert_eq!(*log.borrow(), vec![("a", 10_000), ("b", 30_000)]);
+        assert!(sim.all_done());
+        assert_eq!(sim.now().as_micros(), 1_000_000);
+    }
+
+    #[test]
+    fn a_ticker_ticks_exactly_once_per_period() {
+        let n = Rc::new(Cell::new(0u32));
+        let mut sim = Simulation::new().unwrap();
+        let n2 = n.clone();
+        sim.spawn(async move {
+            let mut t = Ticker::every(Duration::from_micros(250));
+            loop {
+                t.next().await;
+                n2.set(n2.get() + 1);
+            }
+        });
+        sim.run_for(Duration::from_secs(10));
+        // Ticks at 250 µs .. 10 s inclusive.
+        assert_eq!(n.get(), 40_000);
+    }
+
+    #[test]
+    fn one_simulation_per_thread() {
+        let _a = Simulation::new().unwrap();
+        assert!(Simulation::new().is_err());
+    }
+
+    #[test]
+    fn each_thread_has_its_own_clock() {
+        let mut sim = Simulation::new().unwrap();
+        sim.run_for(Duration::from_secs(5));
+        let other = std::thread::spawn(|| {
+            let mut s = Simulation::new().unwrap();
+            s.run_for(Duration::from_millis(3));
+            Instant::now().as_micros()
+        })
+        .join()
+        .unwrap();
+        assert_eq!(other, 3_000);
+        assert_eq!(Instant::now().as_micros(), 5_000_000);
+    }
+}
