@@ -17,7 +17,7 @@ pub mod serial;
 pub mod spi;
 mod units;
 
-pub use units::{BinaryAngle, Point, Pose};
+pub use units::{metres_to_um, BinaryAngle, Point, Pose};
 
 /// Version of the wire protocol described by this crate. Bumped on any incompatible change.
 pub const PROTOCOL_VERSION: u16 = 1;

@@ -30,6 +30,10 @@ pub struct SlaveFrame {
     pub seq: u16,
     /// Slave clock (microseconds since boot, wrapping) at the update this frame reports.
     pub time_us: u32,
+    /// Slave clock when this frame was armed for the master, right after the previous
+    /// transaction ended. The master knows that instant on its own clock, so
+    /// `armed_us - time_us` tells it how old the pose is without synchronised clocks.
+    pub armed_us: u32,
     /// Cumulative encoder counts since the slave's last reset (low 32 bits of 64-bit totals).
     pub counts: [i32; ENCODER_SLOTS],
     /// Absolute encoder code as decoded from Gray (0..2^bits).

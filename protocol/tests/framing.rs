@@ -41,15 +41,20 @@ fn arb_host_msg() -> impl Strategy<Value = HostToMaster> {
 
 fn arb_slave_frame() -> impl Strategy<Value = SlaveFrame> {
     (
-        any::<(u16, u32, [i32; 3], u16)>(),
+        any::<(u16, u32, u32, [i32; 3], u16)>(),
         arb_pose(),
         any::<(u16, u8, u16)>(),
     )
         .prop_map(
-            |((seq, time_us, counts, abs_code), pose, (status, command_ack, rx_rejected))| {
+            |(
+                (seq, time_us, armed_us, counts, abs_code),
+                pose,
+                (status, command_ack, rx_rejected),
+            )| {
                 SlaveFrame {
                     seq,
                     time_us,
+                    armed_us,
                     counts,
                     abs_code,
                     pose,

@@ -1,0 +1,96 @@
+//! The motion controller's portable firmware: everything the master board does, written
+//! against the small traits in [`ports`], `embedded_io_async` and `embassy_time`, so the same
+//! code runs on the STM32F103 (board layer in `main.rs` + `board/`) and inside the emulator.
+//!
+//! The decisions live in one sans-IO state machine, [`controller::Controller`]; four thin
+//! async tasks feed it and carry out what it decides, joined in [`run`]:
+//! * **host rx**: reassemble serial frames, hand messages to the controller;
+//! * **host tx**: send replies at once and telemetry at a fixed rate;
+//! * **slave poll**: one SPI transaction per period; command out, odometry in;
+//! * **control**: at a fixed rate, watchdogs, pursuit, inverse kinematics, motor duties.
+#![cfg_attr(not(test), no_std)]
+
+pub mod controller;
+pub mod ports;
+mod tasks;
+
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::channel::Channel;
+use robot_math::pursuit::PursuitParams;
+
+use controller::Controller;
+pub use tasks::run;
+
+/// Robot geometry, rates and safety limits of the master.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MasterConfig {
+    /// Centre to drive-wheel contact distance, metres (seed 003's d).
+    pub wheel_distance: f64,
+    /// Highest wheel speed the controller may command, m/s.
+    pub v_max: f64,
+    /// Wheel speed at 100 % duty, m/s (the motors' feed-forward constant).
+    pub speed_at_full_duty: f64,
+    pub pursuit: PursuitParams,
+    /// Within this distance of a stopped target the robot counts as arrived, metres.
+    pub arrive_tolerance: f64,
+    pub control_period_us: u32,
+    pub poll_period_us: u32,
+    pub telemetry_period_us: u32,
+    /// Motors stop when no fresh slave frame arrived for this long.
+    pub slave_timeout_us: u32,
+    /// Motors stop when the host sent nothing for this long while a target was followed.
+    pub host_timeout_us: u32,
+}
+
+impl MasterConfig {
+    pub const DEFAULT: MasterConfig = MasterConfig {
+        wheel_distance: 0.22,
+        v_max: 1.0,
+        speed_at_full_duty: 1.0,
+        pursuit: PursuitParams {
+            heading_gain: 4.0,
+            slow_radius: 0.15,
+            max_spin: 2.0,
+        },
+        arrive_tolerance: 0.005,
+        control_period_us: 10_000,
+        poll_period_us: 2_000,
+        telemetry_period_us: 20_000,
+        slave_timeout_us: 50_000,
+        host_timeout_us: 500_000,
+    };
+
+    /// Fastest the robot can translate in every direction (seed 003: v_max·√3/2 is the worst
+    /// direction; pursuit requests above the best case 2·v_max/√3 are refused outright).
+    pub fn max_robot_speed(&self) -> f64 {
+        2.0 * self.v_max / libm::sqrt(3.0)
+    }
+}
+
+/// State shared by the master's tasks. `const`-constructible for a `static` on the board.
+pub struct MasterShared {
+    controller: Mutex<CriticalSectionRawMutex, core::cell::RefCell<Option<Controller>>>,
+    /// Replies for the host (hello, rejections), sent ahead of telemetry.
+    replies: Channel<CriticalSectionRawMutex, protocol::serial::MasterToHost, 4>,
+}
+
+impl Default for MasterShared {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl MasterShared {
+    pub const fn new() -> Self {
+        MasterShared {
+            controller: Mutex::new(core::cell::RefCell::new(None)),
+            replies: Channel::new(),
+        }
+    }
+
+    /// Run `f` on the controller (None before `run` has started it).
+    pub fn with<R>(&self, f: impl FnOnce(&mut Controller) -> R) -> Option<R> {
+        self.controller.lock(|c| c.borrow_mut().as_mut().map(f))
+    }
+}

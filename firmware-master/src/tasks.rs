@@ -1,0 +1,138 @@
+//! The master's async tasks: thin loops between the ports and the [`Controller`].
+
+use embassy_futures::join::join4;
+use embassy_futures::select::{select, Either};
+use embassy_time::{Duration, Instant, Ticker, Timer};
+use embedded_io_async::{Read, Write};
+use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
+use protocol::spi::{self, SlaveFrame, SPI_FRAME_LEN};
+
+use crate::controller::{Controller, Drive};
+use crate::ports::{MotorDrivers, SlaveBus};
+use crate::{MasterConfig, MasterShared};
+
+/// Run the master firmware forever.
+pub async fn run(
+    bus: impl SlaveBus,
+    serial_rx: impl Read,
+    serial_tx: impl Write,
+    mut motors: impl MotorDrivers,
+    shared: &MasterShared,
+    config: &MasterConfig,
+) -> ! {
+    motors.stop();
+    let Some(controller) = Controller::new(*config) else {
+        // An impossible geometry is a build-time mistake; keep the motors off for good.
+        loop {
+            Timer::after_secs(3600).await;
+        }
+    };
+    shared
+        .controller
+        .lock(|c| *c.borrow_mut() = Some(controller));
+    join4(
+        host_rx_task(serial_rx, shared),
+        host_tx_task(serial_tx, shared, config),
+        slave_poll_task(bus, shared, config),
+        control_task(motors, shared, config),
+    )
+    .await
+    .0
+}
+
+/// Reassemble host frames and hand each message to the controller.
+async fn host_rx_task(mut rx: impl Read, shared: &MasterShared) -> ! {
+    let mut decoder = FrameDecoder::new();
+    let mut buf = [0u8; 64];
+    loop {
+        let n = match rx.read(&mut buf).await {
+            Ok(0) => {
+                // Nothing to read (a closed emulated link): don't spin.
+                Timer::after_millis(1).await;
+                continue;
+            }
+            Ok(n) => n,
+            // Framing/noise/overrun errors lose bytes; the CRC catches the damaged frame.
+            Err(_) => {
+                shared.with(|c| c.on_host_frame_error());
+                continue;
+            }
+        };
+        for &byte in &buf[..n] {
+            match decoder.push::<HostToMaster>(byte) {
+                None => {}
+                Some(Ok(msg)) => {
+                    let reply = shared
+                        .with(|c| c.on_host_message(Instant::now(), msg))
+                        .flatten();
+                    if let Some(reply) = reply {
+                        // Replies are rare; if the queue is full the host is not reading and
+                        // a dropped reply is the right outcome.
+                        let _ = shared.replies.try_send(reply);
+                    }
+                }
+                Some(Err(_)) => {
+                    shared.with(|c| c.on_host_frame_error());
+                }
+            }
+        }
+    }
+}
+
+/// Send replies as they come and telemetry at a fixed rate.
+async fn host_tx_task(mut tx: impl Write, shared: &MasterShared, config: &MasterConfig) -> ! {
+    let mut ticker = Ticker::every(Duration::from_micros(config.telemetry_period_us as u64));
+    let mut buf = [0u8; serial::MAX_FRAME];
+    loop {
+        let msg = match select(shared.replies.receive(), ticker.next()).await {
+            Either::First(reply) => reply,
+            Either::Second(()) => match shared.with(|c| c.telemetry(Instant::now())) {
+                Some(t) => MasterToHost::Telemetry(t),
+                None => continue,
+            },
+        };
+        if let Ok(frame) = serial::encode(&msg, &mut buf) {
+            // A write error means the host side is gone; the host watchdog handles that.
+            let _ = tx.write_all(frame).await;
+        }
+    }
+}
+
+/// Poll the slave at a fixed rate.
+async fn slave_poll_task(
+    mut bus: impl SlaveBus,
+    shared: &MasterShared,
+    config: &MasterConfig,
+) -> ! {
+    let mut ticker = Ticker::every(Duration::from_micros(config.poll_period_us as u64));
+    let mut rx = [0u8; SPI_FRAME_LEN];
+    loop {
+        ticker.next().await;
+        let Some(frame) = shared.with(|c| c.next_slave_frame()) else {
+            continue;
+        };
+        let tx = spi::encode(&frame);
+        let result = bus.exchange(&tx, &mut rx).await;
+        let now = Instant::now();
+        shared.with(|c| match result {
+            Ok(()) => c.on_slave_frame(now, spi::decode::<SlaveFrame>(&rx)),
+            Err(_) => c.on_slave_bus_error(now),
+        });
+    }
+}
+
+/// Fixed-rate control: decide, then drive the motors.
+async fn control_task(
+    mut motors: impl MotorDrivers,
+    shared: &MasterShared,
+    config: &MasterConfig,
+) -> ! {
+    let mut ticker = Ticker::every(Duration::from_micros(config.control_period_us as u64));
+    loop {
+        ticker.next().await;
+        match shared.with(|c| c.control(Instant::now())) {
+            Some(Drive::Duty(d)) => motors.set_duty(d),
+            _ => motors.stop(),
+        }
+    }
+}

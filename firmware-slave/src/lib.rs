@@ -1,0 +1,148 @@
+//! The odometry computer's portable firmware: everything the slave board does, written
+//! against the small traits in [`ports`] and `embassy_time`, so the same code runs on the
+//! STM32F103 (board layer in `main.rs` + `board/`) and inside the host emulator.
+//!
+//! Two tasks, joined in [`run`]:
+//! * the **odometry task** samples the counters and the absolute encoder on a fixed-rate
+//!   ticker, extends the 16-bit counts to 64-bit totals, integrates the pose and publishes an
+//!   [`protocol::spi::SlaveFrame`];
+//! * the **SPI task** arms the latest frame for the master's next poll, and checks and applies
+//!   what the master sent back (commands such as set-pose, acknowledged by sequence number).
+#![cfg_attr(not(test), no_std)]
+
+pub mod ports;
+mod shared;
+
+use embassy_futures::join::join;
+use embassy_time::{Duration, Instant, Ticker};
+use protocol::spi::{self, slave_status, MasterFrame, SlaveCommand, SPI_FRAME_LEN};
+use robot_math::carriage::{CarriageGeometry, CarriageOdometry};
+use robot_math::sensors::{gray_to_binary, CounterExtender};
+use robot_math::Pose2;
+
+use ports::{AbsoluteEncoderPins, QuadratureCounters, SpiSlave, MEASURING_WHEELS};
+pub use shared::SlaveShared;
+
+/// How the slave's sensors are built and how often it integrates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlaveConfig {
+    pub geometry: CarriageGeometry,
+    /// Odometry update period (fixed rate).
+    pub update_period_us: u32,
+    /// The absolute encoder pulls its outputs low for a 1 bit (open-collector, negative logic,
+    /// as the E6CP-AG5C does): invert the pin levels before Gray decoding.
+    pub abs_inverted: bool,
+}
+
+impl SlaveConfig {
+    /// Seed 004's sensors at 1 kHz.
+    pub const DEFAULT: SlaveConfig = SlaveConfig {
+        geometry: CarriageGeometry::SEED_004,
+        update_period_us: 1_000,
+        abs_inverted: true,
+    };
+
+    /// The absolute code (binary, `0..2^bits`) the pins stand for.
+    pub fn abs_code(&self, levels: u8) -> u16 {
+        let bits = if self.abs_inverted { !levels } else { levels };
+        let mask = ((1u32 << self.geometry.abs_bits) - 1) as u16;
+        gray_to_binary(bits as u16 & mask)
+    }
+}
+
+/// Run the slave firmware forever.
+pub async fn run(
+    counters: impl QuadratureCounters,
+    abs: impl AbsoluteEncoderPins,
+    spi: impl SpiSlave,
+    shared: &SlaveShared,
+    config: &SlaveConfig,
+) -> ! {
+    join(
+        odometry_task(counters, abs, shared, config),
+        spi_task(spi, shared),
+    )
+    .await
+    .0
+}
+
+/// Fixed-rate sampling and pose integration.
+pub async fn odometry_task(
+    mut counters: impl QuadratureCounters,
+    mut abs: impl AbsoluteEncoderPins,
+    shared: &SlaveShared,
+    config: &SlaveConfig,
+) -> ! {
+    let period = Duration::from_micros(config.update_period_us as u64);
+    let mut extenders = counters.read_raw().map(CounterExtender::new);
+    let mut odometry = CarriageOdometry::new(
+        config.geometry,
+        Pose2::default(),
+        [0; MEASURING_WHEELS],
+        config.abs_code(abs.read_levels()),
+    );
+    let mut ticker = Ticker::every(period);
+    let mut next_due = Instant::now() + period;
+    let mut seq: u16 = 0;
+    loop {
+        ticker.next().await;
+        // Sample first, as close to the tick as possible; everything else can wait.
+        let raw = counters.read_raw();
+        let levels = abs.read_levels();
+        let now = Instant::now();
+
+        let mut status = slave_status::RUNNING;
+        if now > next_due + period {
+            status |= slave_status::OVERRUN;
+        }
+        next_due = now + period;
+        let mut totals = [0i64; MEASURING_WHEELS];
+        for (i, ext) in extenders.iter_mut().enumerate() {
+            let (total, jumped) = ext.update(raw[i]);
+            totals[i] = total;
+            if jumped {
+                status |= slave_status::COUNTER_JUMP;
+            }
+        }
+        let code = config.abs_code(levels);
+
+        if let Some((command_seq, command)) = shared.take_command() {
+            match command {
+                SlaveCommand::SetPose(p) => {
+                    let (x, y, theta) = p.to_si();
+                    odometry.reset(Pose2::new(x, y, theta), totals, code);
+                }
+                SlaveCommand::None => {}
+            }
+            shared.acknowledge(command_seq);
+        }
+        let pose = odometry.update(totals, code);
+
+        seq = seq.wrapping_add(1);
+        let mut counts = [0i32; spi::ENCODER_SLOTS];
+        for (slot, total) in counts.iter_mut().zip(totals) {
+            // The wire carries the low 32 bits; the master only ever needs differences.
+            *slot = total as i32;
+        }
+        shared.publish(seq, now.as_micros() as u32, counts, code, &pose, status);
+    }
+}
+
+/// Answer the master's polls: arm the latest frame, check what came back.
+pub async fn spi_task(mut spi: impl SpiSlave, shared: &SlaveShared) -> ! {
+    let mut rx = [0u8; SPI_FRAME_LEN];
+    loop {
+        let mut frame = shared.frame();
+        frame.armed_us = Instant::now().as_micros() as u32;
+        let tx = spi::encode(&frame);
+        match spi.exchange(&tx, &mut rx).await {
+            Ok(()) => match spi::decode::<MasterFrame>(&rx) {
+                Ok(frame) => shared.receive(&frame),
+                Err(_) => shared.count_rejected(),
+            },
+            // A torn transaction carries nothing trustworthy; the master will see our reply
+            // fail its CRC too and count it on its side.
+            Err(_) => shared.count_rejected(),
+        }
+    }
+}

@@ -1,0 +1,49 @@
+//! The slave's hardware seen through small traits. The board layer (`src/board/`) implements
+//! them with embassy-stm32; the emulator in `host-bench` implements them against a simulated
+//! robot. Nothing in this crate outside `main.rs`/`board/` knows which one it runs on.
+//!
+//! Time is the fourth port: the tasks use `embassy_time` (`Ticker`, `Instant`), whose driver is
+//! TIM4 on the board and a virtual clock in the emulator.
+
+use protocol::spi::SPI_FRAME_LEN;
+
+/// Number of incremental measuring-wheel encoders the slave counts (seed 004 layout).
+pub const MEASURING_WHEELS: usize = 2;
+
+/// Hardware quadrature counters (timer encoder mode, x4 decoding).
+pub trait QuadratureCounters {
+    /// The raw 16-bit counter register of each measuring wheel. Wraps freely; the portable
+    /// code extends it to a 64-bit total, so it must be read at least once per 32 768 counts.
+    fn read_raw(&mut self) -> [u16; MEASURING_WHEELS];
+}
+
+/// The absolute encoder's parallel output (8 Gray-code bits, as levels on the pins).
+pub trait AbsoluteEncoderPins {
+    /// Pin levels, bit i = encoder output bit i (1 = high). Polarity and Gray decoding are
+    /// done by the portable code (`SlaveConfig::abs_inverted`).
+    fn read_levels(&mut self) -> u8;
+}
+
+/// Why a slave-side SPI exchange did not complete.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SpiSlaveError {
+    /// The master ended the transaction (NSS rose) before a whole frame had moved.
+    Aborted,
+    /// The peripheral reported an overrun or mode fault.
+    Bus,
+}
+
+// Both embassy executors and the emulator run tasks on one thread: no `Send` bound wanted.
+#[allow(async_fn_in_trait)]
+/// SPI in slave mode: the master clocks one fixed-size frame per transaction.
+pub trait SpiSlave {
+    /// Arm `tx` for the master's next transaction and wait until it has clocked a whole frame;
+    /// `rx` then holds what the master sent. Must be re-armed promptly: while it is not armed
+    /// the master reads idle bytes (which fail the frame CRC and are counted, never used).
+    async fn exchange(
+        &mut self,
+        tx: &[u8; SPI_FRAME_LEN],
+        rx: &mut [u8; SPI_FRAME_LEN],
+    ) -> Result<(), SpiSlaveError>;
+}
