@@ -1,0 +1,193 @@
+//! Emulated hardware: the firmware's ports implemented in memory, against the [`Plant`].
+//!
+//! Everything here runs on the emulation's single thread, so shared pieces are `Rc<RefCell>`.
+//! Each emulated part behaves like the real one where the firmware could tell the difference:
+//! the counters are 16-bit and wrap, the absolute encoder shows inverted Gray code, SPI moves
+//! whatever the slave had armed when the master asserted chip select (idle 0xFF if nothing),
+//! and the UART takes its byte time.
+
+use std::cell::RefCell;
+use std::collections::VecDeque;
+use std::future::poll_fn;
+use std::rc::Rc;
+use std::task::{Poll, Waker};
+
+use embassy_time::{Duration, Timer};
+use firmware_master::ports::{MotorDrivers, SlaveBus, SpiMasterError};
+use firmware_slave::ports::{AbsoluteEncoderPins, QuadratureCounters, SpiSlave, SpiSlaveError};
+use protocol::spi::SPI_FRAME_LEN;
+use robot_math::sensors::binary_to_gray;
+
+use crate::plant::Plant;
+
+pub type SharedPlant = Rc<RefCell<Plant>>;
+
+/// The slave's timer counters, reading the plant's encoders.
+pub struct EmuCounters(pub SharedPlant);
+
+impl QuadratureCounters for EmuCounters {
+    fn read_raw(&mut self) -> [u16; 2] {
+        // A 16-bit timer register shows the low 16 bits of the true count.
+        self.0.borrow().encoder_counts().map(|c| c as u16)
+    }
+}
+
+/// The absolute encoder's eight output pins (open collector: a 1 bit pulls the pin low).
+pub struct EmuAbsEncoder(pub SharedPlant);
+
+impl AbsoluteEncoderPins for EmuAbsEncoder {
+    fn read_levels(&mut self) -> u8 {
+        !(binary_to_gray(self.0.borrow().abs_code()) as u8)
+    }
+}
+
+/// The three motor drivers: duties go straight to the plant's motors.
+pub struct EmuMotors(pub SharedPlant);
+
+impl MotorDrivers for EmuMotors {
+    fn set_duty(&mut self, duty: [i16; 3]) {
+        self.0
+            .borrow_mut()
+            .set_duty(duty.map(|d| d.clamp(-1000, 1000)));
+    }
+    fn stop(&mut self) {
+        self.0.borrow_mut().set_duty([0; 3]);
+    }
+}
+
+/// The SPI wires between the boards.
+#[derive(Default)]
+pub struct SpiWire {
+    /// Frame the slave armed for the next transaction.
+    armed: Option<[u8; SPI_FRAME_LEN]>,
+    /// What the master clocked in during the last transaction, waiting for the slave.
+    delivered: Option<[u8; SPI_FRAME_LEN]>,
+    slave_waker: Option<Waker>,
+    /// Transactions the master ran.
+    pub transactions: u64,
+}
+
+/// Time one 64-byte transaction takes at the master's SPI clock.
+pub fn spi_transfer_time(clock_hz: u32) -> Duration {
+    Duration::from_micros((SPI_FRAME_LEN as u64 * 8 * 1_000_000).div_ceil(clock_hz as u64))
+}
+
+pub struct EmuSlaveSpi(pub Rc<RefCell<SpiWire>>);
+
+impl SpiSlave for EmuSlaveSpi {
+    async fn exchange(
+        &mut self,
+        tx: &[u8; SPI_FRAME_LEN],
+        rx: &mut [u8; SPI_FRAME_LEN],
+    ) -> Result<(), SpiSlaveError> {
+        self.0.borrow_mut().armed = Some(*tx);
+        poll_fn(|cx| {
+            let mut w = self.0.borrow_mut();
+            match w.delivered.take() {
+                Some(bytes) => {
+                    *rx = bytes;
+                    Poll::Ready(Ok(()))
+                }
+                None => {
+                    w.slave_waker = Some(cx.waker().clone());
+                    Poll::Pending
+                }
+            }
+        })
+        .await
+    }
+}
+
+pub struct EmuMasterBus {
+    pub wire: Rc<RefCell<SpiWire>>,
+    pub transfer_time: Duration,
+}
+
+impl SlaveBus for EmuMasterBus {
+    async fn exchange(
+        &mut self,
+        tx: &[u8; SPI_FRAME_LEN],
+        rx: &mut [u8; SPI_FRAME_LEN],
+    ) -> Result<(), SpiMasterError> {
+        // Chip select: the slave's shift register holds what it armed before this instant.
+        let from_slave = self.wire.borrow_mut().armed.take();
+        Timer::after(self.transfer_time).await;
+        let mut w = self.wire.borrow_mut();
+        w.transactions += 1;
+        match from_slave {
+            Some(bytes) => {
+                *rx = bytes;
+                w.delivered = Some(*tx);
+                if let Some(waker) = w.slave_waker.take() {
+                    waker.wake();
+                }
+            }
+            // Nobody armed: MISO idles high.
+            None => *rx = [0xFF; SPI_FRAME_LEN],
+        }
+        Ok(())
+    }
+}
+
+/// One direction of a UART: bytes appear at the far end after their time on the wire.
+#[derive(Default)]
+pub struct UartLine {
+    bytes: VecDeque<u8>,
+    reader: Option<Waker>,
+}
+
+pub type SharedLine = Rc<RefCell<UartLine>>;
+
+/// Time one byte takes at `baud` with 8N1 framing (10 bits).
+pub fn byte_time(baud: u32) -> Duration {
+    Duration::from_micros((10 * 1_000_000u64).div_ceil(baud as u64))
+}
+
+pub struct UartRx(pub SharedLine);
+pub struct UartTx {
+    pub line: SharedLine,
+    pub byte_time: Duration,
+}
+
+impl embedded_io_async::ErrorType for UartRx {
+    type Error = core::convert::Infallible;
+}
+impl embedded_io_async::ErrorType for UartTx {
+    type Error = core::convert::Infallible;
+}
+
+impl embedded_io_async::Read for UartRx {
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        poll_fn(|cx| {
+            let mut line = self.0.borrow_mut();
+            if line.bytes.is_empty() {
+                line.reader = Some(cx.waker().clone());
+                return Poll::Pending;
+            }
+            let n = buf.len().min(line.bytes.len());
+            for (dst, src) in buf.iter_mut().zip(line.bytes.drain(..n)) {
+                *dst = src;
+            }
+            Poll::Ready(Ok(n))
+        })
+        .await
+    }
+}
+
+impl embedded_io_async::Write for UartTx {
+    async fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        // The frame is on the wire for its byte time; deliver it when the last byte lands.
+        Timer::after(self.byte_time * buf.len() as u32).await;
+        let mut line = self.line.borrow_mut();
+        line.bytes.extend(buf.iter().copied());
+        if let Some(w) = line.reader.take() {
+            w.wake();
+        }
+        Ok(buf.len())
+    }
+
+    async fn flush(&mut self) -> Result<(), Self::Error> {
+        // `write` only returns once the bytes have landed: nothing is ever buffered.
+        Ok(())
+    }
+}

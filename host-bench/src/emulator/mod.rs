@@ -1,0 +1,377 @@
+//! `host-bench emulate`: both boards' portable firmware in one process, on virtual time,
+//! against the simulated robot, with the host speaking the real serial protocol.
+//!
+//! ```text
+//!  host task ── UartLine x2 (115200 8N1) ──► firmware_master::run ── SpiWire ──► firmware_slave::run
+//!                                              │ EmuMotors                        ▲ EmuCounters, EmuAbsEncoder
+//!                                              ▼                                  │
+//!                                            Plant (omni drive + measuring carriage = ground truth)
+//! ```
+//! The loop advances the plant to the next firmware timer deadline (or by at most
+//! `plant_step`), then lets the firmware run at that instant, so every sensor read sees the
+//! plant exactly at the time it happens.
+
+pub mod host;
+pub mod hw;
+
+use std::cell::RefCell;
+use std::rc::Rc;
+use std::time::Instant as WallInstant;
+
+use anyhow::{bail, Context as _, Result};
+use embassy_time::{Duration, Instant};
+use firmware_master::{MasterConfig, MasterShared};
+use firmware_slave::{SlaveConfig, SlaveShared};
+use rand::{Rng, SeedableRng};
+use robot_math::carriage::CarriageGeometry;
+use robot_math::omni3::Omni3;
+use robot_math::se2::wrap_angle;
+use robot_math::Pose2;
+use serde::Serialize;
+use virtual_time::Simulation;
+
+use crate::plant::{Plant, PlantConfig};
+use hw::*;
+
+/// A run to emulate: where the robot starts and what the host asks of it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Scenario {
+    pub name: String,
+    pub description: String,
+    /// Initial body pose (x m, y m, θ rad); the host sends it as set-pose.
+    pub start: (f64, f64, f64),
+    /// Initial carriage swivel, radians (carriage heading minus body heading).
+    pub start_swivel: f64,
+    pub target_from: (f64, f64),
+    pub target_to: (f64, f64),
+    pub target_speed: f64,
+    pub robot_speed: f64,
+    /// Heading the robot holds, radians.
+    pub heading: f64,
+    /// How long to run by default, seconds.
+    pub duration: f64,
+}
+
+impl Scenario {
+    /// Seed 004's pursuit: the target moves from (0, 300) cm along +x at 35 cm/s to
+    /// (250, 300) cm; the robot starts at the origin and pursues at 60 cm/s.
+    pub fn seed004_pursuit() -> Self {
+        Scenario {
+            name: "seed004-pursuit".into(),
+            description: "seed 004: target (0,3) m -> (2.5,3) m at 0.35 m/s, robot at 0.6 m/s from the origin".into(),
+            start: (0.0, 0.0, 0.0),
+            // The carriage trails the first direction of travel (+y), with the swivel at the
+            // centre of an absolute-encoder code (see README, "Robot").
+            start_swivel: std::f64::consts::FRAC_PI_2,
+            target_from: (0.0, 3.0),
+            target_to: (2.5, 3.0),
+            target_speed: 0.35,
+            robot_speed: 0.60,
+            heading: 0.0,
+            duration: 12.0,
+        }
+    }
+
+    pub fn builtin(name: &str) -> Option<Self> {
+        match name {
+            "seed004-pursuit" => Some(Self::seed004_pursuit()),
+            _ => None,
+        }
+    }
+
+    pub const BUILTIN_NAMES: &'static [&'static str] = &["seed004-pursuit"];
+}
+
+/// Knobs of an emulation run.
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub duration: f64,
+    /// Seeds everything random (encoder phases at power-on).
+    pub seed: u64,
+    /// Longest physics step, seconds.
+    pub plant_step: f64,
+    /// Row interval of the log, seconds.
+    pub log_period: f64,
+    pub baud: u32,
+    pub spi_clock_hz: u32,
+    pub master: MasterConfig,
+    pub slave: SlaveConfig,
+    pub motor_tau: f64,
+}
+
+impl Options {
+    pub fn new(scenario: &Scenario) -> Self {
+        Options {
+            duration: scenario.duration,
+            seed: 1,
+            plant_step: 100e-6,
+            log_period: 0.01,
+            baud: 115_200,
+            spi_clock_hz: 2_250_000,
+            master: MasterConfig::DEFAULT,
+            slave: SlaveConfig::DEFAULT,
+            motor_tau: 0.05,
+        }
+    }
+}
+
+/// One row of the run log.
+#[derive(Clone, Debug, Serialize)]
+pub struct LogRow {
+    pub t_s: f64,
+    pub true_x_m: f64,
+    pub true_y_m: f64,
+    pub true_theta_rad: f64,
+    pub slave_x_m: f64,
+    pub slave_y_m: f64,
+    pub slave_theta_rad: f64,
+    pub master_x_m: Option<f64>,
+    pub master_y_m: Option<f64>,
+    pub master_theta_rad: Option<f64>,
+    pub target_x_m: Option<f64>,
+    pub target_y_m: Option<f64>,
+    pub wheel_cmd_1_m_s: f64,
+    pub wheel_cmd_2_m_s: f64,
+    pub wheel_cmd_3_m_s: f64,
+    pub duty_1_permille: i16,
+    pub duty_2_permille: i16,
+    pub duty_3_permille: i16,
+    pub status: u16,
+}
+
+/// What `emulate` reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub scenario: String,
+    pub seed: u64,
+    pub sim_seconds: f64,
+    pub wall_seconds: f64,
+    pub path_length_m: f64,
+    /// Slave odometry vs ground truth at the end of the run, metres.
+    pub final_error_m: f64,
+    /// Largest slave odometry error over the run, metres (checked at every slave update).
+    pub max_error_m: f64,
+    pub final_heading_error_rad: f64,
+    /// Where the robot really ended, and how far that is from the target's end point.
+    pub final_position_m: (f64, f64),
+    pub distance_to_goal_m: f64,
+    pub arrived: bool,
+    /// SPI transactions the master ran, and frames either side dropped (CRC, decode, idle).
+    pub spi_frames: u64,
+    pub spi_frames_rejected: u64,
+    /// Serial frames both ways, and frames either side dropped.
+    pub serial_frames: u64,
+    pub serial_frames_rejected: u64,
+    pub protocol_version: u16,
+    pub schema_fingerprint_match: bool,
+    pub slave_updates: u64,
+    /// Firmware task polls: a machine-independent measure of the work emulated.
+    pub firmware_polls: u64,
+}
+
+pub struct Run {
+    pub summary: Summary,
+    pub log: Vec<LogRow>,
+}
+
+/// Emulate `scenario` to the end.
+pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
+    if !(opts.duration > 0.0 && opts.duration.is_finite()) {
+        bail!(
+            "--duration must be a positive number of seconds, got {}",
+            opts.duration
+        );
+    }
+    let wall = WallInstant::now();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
+    let carriage: CarriageGeometry = opts.slave.geometry;
+    let plant_cfg = PlantConfig {
+        drive: Omni3::new(opts.master.wheel_distance, opts.master.v_max)
+            .context("drive geometry: wheel distance and v_max must be positive")?,
+        speed_at_full_duty: opts.master.speed_at_full_duty,
+        motor_tau: opts.motor_tau,
+        carriage,
+    };
+    let (x, y, th) = scenario.start;
+    let plant: SharedPlant = Rc::new(RefCell::new(Plant::new(
+        plant_cfg,
+        Pose2::new(x, y, th),
+        scenario.start_swivel,
+        [rng.random::<f64>(), rng.random::<f64>()],
+    )));
+
+    let slave_shared = SlaveShared::new();
+    let master_shared = MasterShared::new();
+    let wire = Rc::new(RefCell::new(SpiWire::default()));
+    let to_master: SharedLine = Rc::default();
+    let to_host: SharedLine = Rc::default();
+    let host_log = Rc::new(RefCell::new(host::HostLog::default()));
+    let byte_time = byte_time(opts.baud);
+
+    let mut sim = Simulation::new()?;
+    sim.spawn(async {
+        firmware_slave::run(
+            EmuCounters(plant.clone()),
+            EmuAbsEncoder(plant.clone()),
+            EmuSlaveSpi(wire.clone()),
+            &slave_shared,
+            &opts.slave,
+        )
+        .await;
+    });
+    sim.spawn(async {
+        firmware_master::run(
+            EmuMasterBus {
+                wire: wire.clone(),
+                transfer_time: spi_transfer_time(opts.spi_clock_hz),
+            },
+            UartRx(to_master.clone()),
+            UartTx {
+                line: to_host.clone(),
+                byte_time,
+            },
+            EmuMotors(plant.clone()),
+            &master_shared,
+            &opts.master,
+        )
+        .await;
+    });
+    sim.spawn(host::session(
+        UartRx(to_host.clone()),
+        UartTx {
+            line: to_master.clone(),
+            byte_time,
+        },
+        scenario.clone(),
+        host_log.clone(),
+    ));
+
+    let end = Instant::from_micros((opts.duration * 1e6).round() as u64);
+    let plant_step = Duration::from_micros(((opts.plant_step * 1e6).round() as u64).max(1));
+    let log_every = Duration::from_micros(((opts.log_period * 1e6).round() as u64).max(1));
+    let mut next_log = Instant::from_ticks(0);
+    let mut log = Vec::new();
+    let mut last_seq = None;
+    let (mut max_error, mut slave_updates) = (0.0f64, 0u64);
+    let target = robot_math::pursuit::SegmentTarget {
+        from: scenario.target_from,
+        to: scenario.target_to,
+        speed: scenario.target_speed,
+        t0: 0.0,
+    };
+
+    sim.run_until_idle();
+    loop {
+        let now = sim.now();
+        if now >= end {
+            break;
+        }
+        let mut next = (now + plant_step).min(end);
+        if let Some(d) = sim.next_deadline() {
+            next = next.min(d.max(now));
+        }
+        plant
+            .borrow_mut()
+            .advance((next - now).as_micros() as f64 * 1e-6, opts.plant_step);
+        sim.run_until(next);
+
+        // Score the slave at every update, at the very instant it sampled its sensors.
+        let frame = slave_shared.frame();
+        if last_seq != Some(frame.seq) {
+            last_seq = Some(frame.seq);
+            slave_updates += 1;
+            let err = slave_shared.pose().distance_to(plant.borrow().body());
+            max_error = max_error.max(err);
+        }
+        if next >= next_log {
+            next_log = next + log_every;
+            let t_s = next.as_micros() as f64 / 1e6;
+            let goal_t0 = host_log.borrow().follow_sent_at;
+            log.push(log_row(
+                t_s,
+                &plant.borrow(),
+                &slave_shared,
+                &master_shared,
+                next,
+                goal_t0.map(|t0| {
+                    robot_math::pursuit::SegmentTarget { t0, ..target }
+                        .position(t_s)
+                        .0
+                }),
+            ));
+        }
+    }
+
+    let plant = plant.borrow();
+    let truth = plant.body();
+    let slave = slave_shared.pose();
+    let counters = master_shared.with(|c| c.counters()).unwrap_or_default();
+    let h = host_log.borrow();
+    let slave_rx_rejected = slave_shared.frame().rx_rejected as u64;
+    let end_pos = truth;
+    let distance_to_goal =
+        (end_pos.x - scenario.target_to.0).hypot(end_pos.y - scenario.target_to.1);
+    let status = master_shared.with(|c| c.status()).unwrap_or(0);
+    let summary = Summary {
+        scenario: scenario.name.clone(),
+        seed: opts.seed,
+        sim_seconds: sim.now().as_micros() as f64 / 1e6,
+        wall_seconds: wall.elapsed().as_secs_f64(),
+        path_length_m: plant.path_length(),
+        final_error_m: slave.distance_to(truth),
+        max_error_m: max_error,
+        final_heading_error_rad: wrap_angle(slave.theta - truth.theta),
+        final_position_m: (truth.x, truth.y),
+        distance_to_goal_m: distance_to_goal,
+        arrived: status & protocol::serial::status::ARRIVED != 0,
+        spi_frames: wire.borrow().transactions,
+        spi_frames_rejected: counters.spi_rejected as u64 + slave_rx_rejected,
+        serial_frames: counters.serial_ok as u64 + h.frames_received,
+        serial_frames_rejected: counters.serial_rejected as u64 + h.frames_rejected,
+        protocol_version: protocol::PROTOCOL_VERSION,
+        schema_fingerprint_match: h.fingerprint_match == Some(true),
+        slave_updates,
+        firmware_polls: sim.polls(),
+    };
+    if let Some(problem) = &h.problem {
+        bail!("the emulated master refused the session: {problem}");
+    }
+    Ok(Run { summary, log })
+}
+
+fn log_row(
+    t_s: f64,
+    plant: &Plant,
+    slave: &SlaveShared,
+    master: &MasterShared,
+    now: Instant,
+    target: Option<(f64, f64)>,
+) -> LogRow {
+    let truth = plant.body();
+    let s = slave.pose();
+    let (est, tel) = master
+        .with(|c| (c.estimate(now), c.telemetry(now)))
+        .unwrap_or((None, Default::default()));
+    let w = tel.wheel_cmd_um_s.map(|v| v as f64 / 1e6);
+    LogRow {
+        t_s,
+        true_x_m: truth.x,
+        true_y_m: truth.y,
+        true_theta_rad: wrap_angle(truth.theta),
+        slave_x_m: s.x,
+        slave_y_m: s.y,
+        slave_theta_rad: wrap_angle(s.theta),
+        master_x_m: est.map(|p| p.x),
+        master_y_m: est.map(|p| p.y),
+        master_theta_rad: est.map(|p| wrap_angle(p.theta)),
+        target_x_m: target.map(|p| p.0),
+        target_y_m: target.map(|p| p.1),
+        wheel_cmd_1_m_s: w[0],
+        wheel_cmd_2_m_s: w[1],
+        wheel_cmd_3_m_s: w[2],
+        duty_1_permille: tel.duty_permille[0],
+        duty_2_permille: tel.duty_permille[1],
+        duty_3_permille: tel.duty_permille[2],
+        status: tel.status,
+    }
+}

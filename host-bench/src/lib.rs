@@ -1,0 +1,6 @@
+//! omnibench's host side: the emulator (both boards' firmware against a simulated robot),
+//! the simulated robot itself, and reporting. The `host-bench` binary is the CLI over this.
+
+pub mod emulator;
+pub mod plant;
+pub mod report;

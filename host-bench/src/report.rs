@@ -1,0 +1,228 @@
+//! Reporting: the human summary, the CSV log and the SVG plot of a run.
+//!
+//! Files are written to a temporary name in the output folder and renamed into place, so an
+//! interrupted or failed run never leaves a half-written file behind.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use plotters::prelude::*;
+
+use crate::emulator::{LogRow, Run, Summary};
+
+/// The short summary `emulate` prints.
+pub fn summary_text(s: &Summary) -> String {
+    let ok = |b: bool| if b { "ok" } else { "MISMATCH" };
+    format!(
+        "scenario        {scenario} (seed {seed})\n\
+         simulated       {sim:.3} s in {wall:.3} s wall ({speed:.0}x real time)\n\
+         path length     {path:.3} m\n\
+         slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
+         robot           ended at ({x:.4}, {y:.4}) m, {dg:.1} mm from the goal{arr}\n\
+         SPI frames      {spi} exchanged, {spir} rejected\n\
+         serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",
+        scenario = s.scenario,
+        seed = s.seed,
+        sim = s.sim_seconds,
+        wall = s.wall_seconds,
+        speed = s.sim_seconds / s.wall_seconds.max(1e-9),
+        path = s.path_length_m,
+        fe = s.final_error_m * 1e3,
+        me = s.max_error_m * 1e3,
+        he = s.final_heading_error_rad.to_degrees(),
+        x = s.final_position_m.0,
+        y = s.final_position_m.1,
+        dg = s.distance_to_goal_m * 1e3,
+        arr = if s.arrived { " (arrived)" } else { "" },
+        spi = s.spi_frames,
+        spir = s.spi_frames_rejected,
+        ser = s.serial_frames,
+        serr = s.serial_frames_rejected,
+        pv = s.protocol_version,
+        fp = ok(s.schema_fingerprint_match),
+    )
+}
+
+/// Write `run.csv`, `path.svg` and `summary.json` into `dir` (created if missing).
+pub fn write_outputs(run: &Run, dir: &Path) -> Result<Vec<PathBuf>> {
+    if dir.exists() && !dir.is_dir() {
+        anyhow::bail!("--out {}: exists and is not a directory", dir.display());
+    }
+    fs::create_dir_all(dir)
+        .with_context(|| format!("--out {}: cannot create directory", dir.display()))?;
+    let csv_path = dir.join("run.csv");
+    let svg_path = dir.join("path.svg");
+    let json_path = dir.join("summary.json");
+    write_atomically(&csv_path, |tmp| write_csv(&run.log, tmp))?;
+    write_atomically(&svg_path, |tmp| write_svg(run, tmp))?;
+    write_atomically(&json_path, |tmp| {
+        fs::write(tmp, serde_json::to_string_pretty(&run.summary)? + "\n")?;
+        Ok(())
+    })?;
+    Ok(vec![csv_path, svg_path, json_path])
+}
+
+fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let tmp = path.with_extension(format!(
+        "{}.partial",
+        path.extension().and_then(|e| e.to_str()).unwrap_or("")
+    ));
+    let result = write(&tmp).and_then(|()| {
+        fs::rename(&tmp, path).with_context(|| format!("cannot move {} into place", path.display()))
+    });
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result.with_context(|| format!("writing {}", path.display()))
+}
+
+fn write_csv(rows: &[LogRow], path: &Path) -> Result<()> {
+    let mut w = csv::Writer::from_path(path)?;
+    for r in rows {
+        w.serialize(r)?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+fn write_svg(run: &Run, path: &Path) -> Result<()> {
+    let log = &run.log;
+    let pts = |f: fn(&LogRow) -> Option<(f64, f64)>| -> Vec<(f64, f64)> {
+        log.iter().filter_map(f).collect()
+    };
+    let truth = pts(|r| Some((r.true_x_m, r.true_y_m)));
+    let slave = pts(|r| Some((r.slave_x_m, r.slave_y_m)));
+    let master = pts(|r| r.master_x_m.zip(r.master_y_m));
+    let target = pts(|r| r.target_x_m.zip(r.target_y_m));
+
+    // Equal scales on both axes, with a margin, so the path's shape is true.
+    let all = truth.iter().chain(&slave).chain(&target);
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in all {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if x0 > x1 {
+        (x0, x1, y0, y1) = (-1.0, 1.0, -1.0, 1.0);
+    }
+    let span = (x1 - x0).max(y1 - y0).max(0.1) * 1.1;
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let (x0, x1, y0, y1) = (
+        cx - span / 2.0,
+        cx + span / 2.0,
+        cy - span / 2.0,
+        cy + span / 2.0,
+    );
+
+    let root = SVGBackend::new(path, (800, 1100)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, bottom) = root.split_vertically(860);
+    let s = &run.summary;
+    let caption = format!(
+        "{}: slave odometry error final {:.2} mm, max {:.2} mm",
+        s.scenario,
+        s.final_error_m * 1e3,
+        s.max_error_m * 1e3
+    );
+    let mut chart = ChartBuilder::on(&top)
+        .caption(caption, ("sans-serif", 18))
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(x0..x1, y0..y1)?;
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .draw()?;
+    let series: [(&str, &Vec<(f64, f64)>, RGBColor); 4] = [
+        ("target", &target, RGBColor(150, 150, 150)),
+        ("ground truth", &truth, RGBColor(0, 0, 0)),
+        ("slave odometry", &slave, SLAVE_COLOR),
+        ("master estimate", &master, MASTER_COLOR),
+    ];
+    for (name, data, color) in series {
+        if data.is_empty() {
+            continue;
+        }
+        chart
+            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(2)))?
+            .label(name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()?;
+    draw_error_panel(&bottom, log)?;
+    root.present()?;
+    Ok(())
+}
+
+const SLAVE_COLOR: RGBColor = RGBColor(220, 40, 40);
+const MASTER_COLOR: RGBColor = RGBColor(40, 90, 220);
+
+/// Position error against ground truth over time, in millimetres: at the paths' scale the
+/// estimates sit on the truth, so the error needs its own axis to be seen at all.
+fn draw_error_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    log: &[LogRow],
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |x: Option<f64>, y: Option<f64>, r: &LogRow| -> Option<(f64, f64)> {
+        Some((r.t_s, (x? - r.true_x_m).hypot(y? - r.true_y_m) * 1e3))
+    };
+    let slave: Vec<_> = log
+        .iter()
+        .filter_map(|r| err(Some(r.slave_x_m), Some(r.slave_y_m), r))
+        .collect();
+    let master: Vec<_> = log
+        .iter()
+        .filter_map(|r| err(r.master_x_m, r.master_y_m, r))
+        .collect();
+    let t_end = log.last().map_or(1.0, |r| r.t_s).max(1e-3);
+    let e_max = slave
+        .iter()
+        .chain(&master)
+        .map(|p| p.1)
+        .fold(0.0f64, f64::max)
+        .max(1e-3)
+        * 1.1;
+    let mut chart = ChartBuilder::on(area)
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..t_end, 0.0..e_max)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("position error (mm)")
+        .draw()?;
+    for (name, data, color) in [
+        ("slave odometry", &slave, SLAVE_COLOR),
+        ("master estimate", &master, MASTER_COLOR),
+    ] {
+        chart
+            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))?
+            .label(name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()?;
+    Ok(())
+}
