@@ -27,7 +27,7 @@ enum Command {
         #[arg(long, default_value = "seed004-pursuit", value_parser = clap::builder::PossibleValuesParser::new(Scenario::BUILTIN_NAMES))]
         scenario: String,
         /// Simulated seconds to run [default: the scenario's own duration, 12 s for seed004-pursuit].
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         duration: Option<f64>,
         /// Seed for everything random in the run (e.g. the encoders' phase at power-on).
         #[arg(long, default_value_t = 1)]
@@ -38,6 +38,12 @@ enum Command {
         /// Write run.csv (the log), path.svg (paths plot) and summary.json into this folder.
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Fault injection: cut the slave's power at this simulated time (seconds).
+        #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
+        fault_slave_off_at: Option<f64>,
+        /// Fault injection: the host goes silent at this simulated time (seconds).
+        #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
+        fault_host_silent_after: Option<f64>,
     },
 }
 
@@ -60,6 +66,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             seed,
             json,
             out,
+            fault_slave_off_at,
+            fault_host_silent_after,
         } => {
             let scenario = Scenario::builtin(&scenario)
                 .ok_or_else(|| anyhow::anyhow!("unknown scenario {scenario:?}"))?;
@@ -68,6 +76,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 opts.duration = d;
             }
             opts.seed = seed;
+            opts.faults.slave_off_at = fault_slave_off_at;
+            opts.faults.host_silent_after = fault_host_silent_after;
             let run = emulator::run(&scenario, &opts)?;
             if let Some(dir) = &out {
                 let written = report::write_outputs(&run, dir)?;

@@ -72,6 +72,15 @@ pub fn spi_transfer_time(clock_hz: u32) -> Duration {
     Duration::from_micros((SPI_FRAME_LEN as u64 * 8 * 1_000_000).div_ceil(clock_hz as u64))
 }
 
+impl SpiWire {
+    /// The slave lost power: its shift register no longer answers (MISO idles high).
+    pub fn power_off(&mut self) {
+        self.armed = None;
+        self.delivered = None;
+        self.slave_waker = None;
+    }
+}
+
 pub struct EmuSlaveSpi(pub Rc<RefCell<SpiWire>>);
 
 impl SpiSlave for EmuSlaveSpi {

@@ -97,6 +97,16 @@ pub struct Options {
     pub master: MasterConfig,
     pub slave: SlaveConfig,
     pub motor_tau: f64,
+    pub faults: Faults,
+}
+
+/// Faults to inject, each at a virtual time in seconds (None: never).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Faults {
+    /// The slave loses power: its firmware stops and it answers no more polls.
+    pub slave_off_at: Option<f64>,
+    /// The host stops sending anything (cable pulled, host program hung).
+    pub host_silent_after: Option<f64>,
 }
 
 impl Options {
@@ -111,6 +121,7 @@ impl Options {
             master: MasterConfig::DEFAULT,
             slave: SlaveConfig::DEFAULT,
             motor_tau: 0.05,
+            faults: Faults::default(),
         }
     }
 }
@@ -208,16 +219,19 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let host_log = Rc::new(RefCell::new(host::HostLog::default()));
     let byte_time = byte_time(opts.baud);
 
+    let slave_off = opts.faults.slave_off_at.map(secs_to_instant);
     let mut sim = Simulation::new()?;
     sim.spawn(async {
-        firmware_slave::run(
+        let slave = firmware_slave::run(
             EmuCounters(plant.clone()),
             EmuAbsEncoder(plant.clone()),
             EmuSlaveSpi(wire.clone()),
             &slave_shared,
             &opts.slave,
-        )
-        .await;
+        );
+        // Power loss: the firmware future is dropped mid-flight, like a CPU that stops.
+        until(slave_off, slave).await;
+        wire.borrow_mut().power_off();
     });
     sim.spawn(async {
         firmware_master::run(
@@ -236,14 +250,17 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         )
         .await;
     });
-    sim.spawn(host::session(
-        UartRx(to_host.clone()),
-        UartTx {
-            line: to_master.clone(),
-            byte_time,
-        },
-        scenario.clone(),
-        host_log.clone(),
+    sim.spawn(until(
+        opts.faults.host_silent_after.map(secs_to_instant),
+        host::session(
+            UartRx(to_host.clone()),
+            UartTx {
+                line: to_master.clone(),
+                byte_time,
+            },
+            scenario.clone(),
+            host_log.clone(),
+        ),
     ));
 
     let end = Instant::from_micros((opts.duration * 1e6).round() as u64);
@@ -337,6 +354,22 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         bail!("the emulated master refused the session: {problem}");
     }
     Ok(Run { summary, log })
+}
+
+fn secs_to_instant(s: f64) -> Instant {
+    Instant::from_micros((s.max(0.0) * 1e6).round() as u64)
+}
+
+/// Run `f` until it ends or the virtual time `at` comes, whichever is first.
+async fn until(at: Option<Instant>, f: impl std::future::Future) {
+    match at {
+        Some(at) => {
+            embassy_futures::select::select(f, embassy_time::Timer::at(at)).await;
+        }
+        None => {
+            f.await;
+        }
+    }
 }
 
 fn log_row(

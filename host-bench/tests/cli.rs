@@ -1,0 +1,118 @@
+//! The `host-bench` binary as a user runs it.
+
+use std::process::Command;
+
+fn host_bench() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-bench"))
+}
+
+#[test]
+fn emulate_json_prints_the_documented_keys() {
+    let out = host_bench()
+        .args(["emulate", "--json", "--duration", "3"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(
+        stdout.lines().count(),
+        1,
+        "one JSON object on one line: {stdout}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    for key in [
+        "scenario",
+        "sim_seconds",
+        "wall_seconds",
+        "path_length_m",
+        "final_error_m",
+        "max_error_m",
+        "final_heading_error_rad",
+        "spi_frames",
+        "spi_frames_rejected",
+        "serial_frames",
+        "serial_frames_rejected",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key} in {stdout}");
+    }
+    assert_eq!(v["scenario"], "seed004-pursuit");
+    assert_eq!(v["sim_seconds"], 3.0);
+}
+
+#[test]
+fn emulate_out_writes_csv_svg_and_json() {
+    let dir = std::env::temp_dir().join(format!("omnibench-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = host_bench()
+        .args(["emulate", "--duration", "2", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.join("run.csv")).unwrap();
+    let header = csv.lines().next().unwrap();
+    for col in [
+        "t_s",
+        "true_x_m",
+        "slave_x_m",
+        "master_x_m",
+        "wheel_cmd_1_m_s",
+        "duty_3_permille",
+    ] {
+        assert!(
+            header.split(',').any(|c| c == col),
+            "missing column {col}: {header}"
+        );
+    }
+    // 2 s at 100 rows per second.
+    assert!((195..=205).contains(&(csv.lines().count() - 1)));
+    let svg = std::fs::read_to_string(dir.join("path.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("ground truth"));
+    assert!(dir.join("summary.json").exists());
+    // Nothing half-written left behind.
+    assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e
+        .unwrap()
+        .file_name()
+        .to_string_lossy()
+        .ends_with(".partial")));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_arguments_fail_clearly_and_write_nothing() {
+    let out = host_bench()
+        .args(["emulate", "--duration", "-1"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--duration"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+
+    let file = std::env::temp_dir().join(format!("omnibench-not-a-dir-{}", std::process::id()));
+    std::fs::write(&file, "x").unwrap();
+    let out = host_bench()
+        .args(["emulate", "--duration", "1", "--out"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("not a directory"), "{err}");
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
+    std::fs::remove_file(&file).unwrap();
+
+    let out = host_bench()
+        .args(["emulate", "--scenario", "nope"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+}

@@ -1,0 +1,131 @@
+//! The whole system, emulated: both boards' portable firmware, linked by an in-memory SPI bus,
+//! driven over the real serial protocol, closing the loop through the simulated robot.
+//!
+//! Bounds are set from measurement (README, "Accuracy"): over seeds 1-30 the slave's final
+//! error on the default scenario is 0.014-0.49 mm, so 1 mm leaves a 2x margin and still fails
+//! on any real regression; the heading error is bounded by half a step of the 8-bit
+//! absolute encoder (the slave reads body heading through it).
+
+use host_bench::emulator::{self, Options, Run, Scenario};
+
+/// Slave odometry vs ground truth at the end of the default scenario.
+const FINAL_ERROR_BOUND_M: f64 = 0.001;
+/// How close to the target's end point the robot must stop.
+const GOAL_TOLERANCE_M: f64 = 0.005;
+
+fn run_default(seed: u64, tweak: impl FnOnce(&mut Options)) -> Run {
+    let scenario = Scenario::seed004_pursuit();
+    let mut opts = Options::new(&scenario);
+    opts.seed = seed;
+    tweak(&mut opts);
+    emulator::run(&scenario, &opts).expect("emulation runs")
+}
+
+/// Half a step of the slave's absolute encoder, plus rounding.
+fn heading_bound() -> f64 {
+    let g = firmware_slave::SlaveConfig::DEFAULT.geometry;
+    g.abs_step() / 2.0 + 1e-6
+}
+
+#[test]
+fn default_scenario_reaches_the_goal_with_accurate_odometry() {
+    let s = run_default(1, |_| {}).summary;
+    assert_eq!(s.scenario, "seed004-pursuit");
+    assert!((s.sim_seconds - 12.0).abs() < 1e-9, "{s:?}");
+    // The robot stops on the target's end point (2.5, 3.0) m and says so.
+    assert!(s.distance_to_goal_m < GOAL_TOLERANCE_M, "{s:?}");
+    assert!(s.arrived, "{s:?}");
+    // A pursuit curve from the origin to (2.5, 3): longer than the straight 3.9 m.
+    assert!(s.path_length_m > 3.9 && s.path_length_m < 5.0, "{s:?}");
+    // The slave's odometry against ground truth.
+    assert!(s.final_error_m < FINAL_ERROR_BOUND_M, "{s:?}");
+    assert!(s.max_error_m < FINAL_ERROR_BOUND_M, "{s:?}");
+    assert!(s.final_heading_error_rad.abs() <= heading_bound(), "{s:?}");
+    // Frames flowed the whole run, none rejected: 500 Hz SPI polls, 50 Hz telemetry.
+    assert!(s.spi_frames >= 5_990, "{s:?}");
+    assert!(s.serial_frames >= 700, "{s:?}");
+    assert_eq!(s.spi_frames_rejected, 0, "{s:?}");
+    assert_eq!(s.serial_frames_rejected, 0, "{s:?}");
+    assert!(s.schema_fingerprint_match);
+    // The slave integrated at its fixed 1 kHz the whole time.
+    assert!((11_990..=12_001).contains(&s.slave_updates), "{s:?}");
+}
+
+#[test]
+fn the_same_seed_gives_the_same_run() {
+    let a = run_default(7, |_| {});
+    let b = run_default(7, |_| {});
+    let strip = |r: &Run| {
+        let mut s = r.summary.clone();
+        s.wall_seconds = 0.0;
+        format!("{s:?}")
+    };
+    assert_eq!(strip(&a), strip(&b));
+    assert_eq!(format!("{:?}", a.log), format!("{:?}", b.log));
+}
+
+#[test]
+fn every_seed_stays_within_the_bound_and_seeds_matter() {
+    let errors: Vec<f64> = (1..=6)
+        .map(|seed| {
+            let s = run_default(seed, |_| {}).summary;
+            assert!(s.final_error_m < FINAL_ERROR_BOUND_M, "seed {seed}: {s:?}");
+            assert!(
+                s.distance_to_goal_m < GOAL_TOLERANCE_M,
+                "seed {seed}: {s:?}"
+            );
+            s.final_error_m
+        })
+        .collect();
+    // The seed sets the encoders' power-on phase: different seeds, different quantisation.
+    assert!(errors.windows(2).any(|w| w[0] != w[1]), "{errors:?}");
+}
+
+/// The first logged time at or after `after` when all three duties are zero.
+fn motors_stopped_at(run: &Run, after: f64) -> Option<f64> {
+    run.log
+        .iter()
+        .find(|r| {
+            r.t_s >= after && [r.duty_1_permille, r.duty_2_permille, r.duty_3_permille] == [0; 3]
+        })
+        .map(|r| r.t_s)
+}
+
+#[test]
+fn losing_the_slave_stops_the_motors_within_the_link_timeout() {
+    let run = run_default(1, |o| o.faults.slave_off_at = Some(3.0));
+    // Still driving just before the fault.
+    let before = run.log.iter().rev().find(|r| r.t_s < 3.0).unwrap();
+    assert_ne!(
+        [
+            before.duty_1_permille,
+            before.duty_2_permille,
+            before.duty_3_permille
+        ],
+        [0; 3]
+    );
+    let cfg = firmware_master::MasterConfig::DEFAULT;
+    let bound = 3.0 + (cfg.slave_timeout_us + cfg.control_period_us) as f64 * 1e-6 + 0.01;
+    let stopped = motors_stopped_at(&run, 3.0).expect("motors stop");
+    assert!(stopped <= bound, "stopped at {stopped}, bound {bound}");
+    let last = run.log.last().unwrap();
+    assert_ne!(last.status & protocol::serial::status::SLAVE_LOST, 0);
+    assert!(
+        run.summary.spi_frames_rejected > 0,
+        "a dead slave's polls fail their CRC"
+    );
+}
+
+#[test]
+fn a_silent_host_stops_the_motors_within_the_host_timeout() {
+    let run = run_default(1, |o| o.faults.host_silent_after = Some(3.0));
+    let cfg = firmware_master::MasterConfig::DEFAULT;
+    // The last heartbeat went out at most 100 ms before the host fell silent.
+    let bound = 3.0 + (cfg.host_timeout_us + cfg.control_period_us) as f64 * 1e-6 + 0.01;
+    let stopped = motors_stopped_at(&run, 3.0).expect("motors stop");
+    assert!(stopped > 3.0 + 0.3, "stopped too early, at {stopped}");
+    assert!(stopped <= bound, "stopped at {stopped}, bound {bound}");
+    let last = run.log.last().unwrap();
+    assert_ne!(last.status & protocol::serial::status::HOST_LOST, 0);
+    assert!(!run.summary.arrived);
+}
