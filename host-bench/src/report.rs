@@ -138,9 +138,9 @@ fn write_svg(run: &Run, path: &Path) -> Result<()> {
         .x_desc("x (m)")
         .y_desc("y (m)")
         .draw()?;
-    let series: [(&str, &Vec<(f64, f64)>, RGBColor); 4] = [
+    let series = [
         ("target", &target, RGBColor(150, 150, 150)),
-        ("ground truth", &truth, RGBColor(0, 0, 0)),
+        ("ground truth", &truth, BLACK),
         ("slave odometry", &slave, SLAVE_COLOR),
         ("master estimate", &master, MASTER_COLOR),
     ];

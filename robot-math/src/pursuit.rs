@@ -62,7 +62,11 @@ pub fn pursue(
 ) -> (f64, f64, f64) {
     let (ex, ey) = (target.0 - pos.0, target.1 - pos.1);
     let dist = libm::hypot(ex, ey);
-    let omega = (p.heading_gain * wrap_angle(heading_ref - heading)).clamp(-p.max_spin, p.max_spin);
+    // max/min rather than clamp: clamp's check of its run-time bounds would pull float
+    // formatting (over 12 KiB) into the master's 64 KiB image.
+    let omega = (p.heading_gain * wrap_angle(heading_ref - heading))
+        .max(-p.max_spin)
+        .min(p.max_spin);
     if dist < 1e-9 {
         return (0.0, 0.0, omega);
     }

@@ -49,7 +49,8 @@ pub fn invert3(m: &Mat3, eps: f64) -> Option<Mat3> {
         [c(0, 1, 1, 2), -c(0, 0, 1, 2), c(0, 0, 1, 1)],
     ];
     let det = m[0][0] * cof[0][0] + m[0][1] * cof[0][1] + m[0][2] * cof[0][2];
-    if !(det.abs() > eps) {
+    // NaN entries make a NaN determinant: refuse those too.
+    if det.is_nan() || det.abs() <= eps {
         return None;
     }
     let mut inv = [[0.0; 3]; 3];
