@@ -1,0 +1,18 @@
+//! Linker scripts for the firmware image only.
+//!
+//! The same package also builds on the host (the portable library for the emulator and the
+//! tests, plus a stub binary), where `link.x`/`defmt.x` do not exist; so the arguments are
+//! emitted only for bare-metal targets, and only for the binary.
+
+fn main() {
+    println!("cargo:rerun-if-changed=build.rs");
+    if std::env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("none") {
+        // Sections are placed at fixed flash/RAM addresses; page-aligning them would waste flash.
+        println!("cargo:rustc-link-arg-bins=--nmagic");
+        // cortex-m-rt's linker script; it includes memory.x, which embassy-stm32's `memory-x`
+        // feature provides.
+        println!("cargo:rustc-link-arg-bins=-Tlink.x");
+        // defmt's interned-string section.
+        println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
+    }
+}

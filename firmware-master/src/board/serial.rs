@@ -1,0 +1,53 @@
+//! USART1 to the host (a USB-serial adapter): 115200 8N1, both directions on DMA.
+//!
+//! Reception runs continuously into a circular DMA buffer (`RingBufferedUartRx`), so bytes keep
+//! arriving while the control code is busy and a read returns whatever is there: at once if
+//! bytes are waiting, otherwise when the line goes idle after a burst (or the DMA reaches the
+//! half/end of the buffer). After a line error (framing, noise, overrun) a read returns the
+//! error once and the next read restarts reception; the COBS framing above resynchronises.
+
+use embassy_stm32::gpio::Pull;
+use embassy_stm32::mode::Async;
+use embassy_stm32::peripherals::{DMA1_CH4, DMA1_CH5, PA10, PA9, USART1};
+use embassy_stm32::usart::{Config, RingBufferedUartRx, Uart, UartTx};
+use embassy_stm32::Peri;
+
+use super::Irqs;
+
+/// The host-bound half: DMA writes, `embedded_io_async::Write`.
+pub type SerialTx = UartTx<'static, Async>;
+/// The host-to-master half: circular DMA reception, `embedded_io_async::Read`.
+pub type SerialRx = RingBufferedUartRx<'static>;
+
+/// Receive buffer size. At 115200 baud (11.5 kB/s) 512 bytes absorb ~44 ms of a continuous
+/// stream without any read, far more than the control code ever stalls the reader.
+const RX_BUFFER_LEN: usize = 512;
+
+pub fn new(
+    usart: Peri<'static, USART1>,
+    tx: Peri<'static, PA9>,
+    rx: Peri<'static, PA10>,
+    tx_dma: Peri<'static, DMA1_CH4>,
+    rx_dma: Peri<'static, DMA1_CH5>,
+    irqs: Irqs,
+) -> (SerialTx, SerialRx) {
+    // 8 data bits, no parity, 1 stop bit are the defaults; the baud rate is spelled out because
+    // the host side must match it.
+    let mut config = Config::default();
+    config.baudrate = 115_200;
+    // With the USB-serial adapter unplugged, RX would float and produce framing errors and
+    // noise bytes; the pull-up holds it at the idle (mark) level. PA10 is 5 V tolerant.
+    config.rx_pull = Pull::Up;
+
+    let uart = Uart::new(usart, rx, tx, tx_dma, rx_dma, irqs, config)
+        .unwrap_or_else(|_| defmt::panic!("USART1 rejected 115200 8N1 (impossible at 72 MHz)"));
+    let (tx, rx) = uart.split();
+
+    let buffer = cortex_m::singleton!(: [u8; RX_BUFFER_LEN] = [0; RX_BUFFER_LEN])
+        .unwrap_or_else(|| defmt::panic!("serial::new called twice"));
+    let mut rx = rx.into_ring_buffered(buffer);
+    // Start receiving now rather than at the first read, so nothing the host sends while the
+    // firmware starts up is lost.
+    rx.start_uart();
+    (tx, rx)
+}

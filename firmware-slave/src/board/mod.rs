@@ -1,0 +1,91 @@
+//! STM32F103C8 ("blue pill") board layer of the odometry computer: clocks, pins, and the
+//! embassy-stm32 implementations of the ports in `firmware_slave::ports`.
+//!
+//! Pin map (see docs/pinmap.md): PA0/PA1 TIM2 encoder (left measuring wheel), PA8/PA9 TIM1
+//! encoder (right), PA4..PA7 SPI1 slave (NSS, SCK, MISO, MOSI) with DMA1 CH2 (RX) / CH3 (TX),
+//! PB8..PB15 absolute encoder, PC13 LED. TIM4 is embassy's time driver.
+
+mod abs_encoder;
+mod qei;
+mod spi_slave;
+
+use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::{bind_interrupts, dma, exti, interrupt, peripherals};
+use embassy_time::Timer;
+// Linked for their side effects: the RTT transport behind `defmt` and the panic handler.
+use {defmt_rtt as _, panic_probe as _};
+
+pub use abs_encoder::AbsoluteEncoder;
+pub use qei::Counters;
+pub use spi_slave::SpiSlaveLink;
+
+bind_interrupts!(pub struct Irqs {
+    DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
+    DMA1_CHANNEL3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
+    EXTI4 => exti::InterruptHandler<interrupt::typelevel::EXTI4>;
+});
+
+/// Everything `main` hands to the tasks.
+pub struct Board {
+    pub counters: Counters,
+    pub abs: AbsoluteEncoder,
+    pub spi: SpiSlaveLink,
+    pub led: Output<'static>,
+}
+
+/// 72 MHz from the blue pill's 8 MHz crystal: PLL x9; APB1 /2 because it may not exceed 36 MHz
+/// (its timers, TIM2 and TIM4, still run at 72 MHz thanks to the x2 timer multiplier); APB2 /1
+/// so SPI1 and TIM1 run at 72 MHz.
+fn clock_config() -> embassy_stm32::Config {
+    use embassy_stm32::rcc::{
+        AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllMul, PllPreDiv, PllSource, Sysclk,
+    };
+    use embassy_stm32::time::Hertz;
+
+    let mut config = embassy_stm32::Config::default();
+    config.rcc.hse = Some(Hse {
+        freq: Hertz(8_000_000),
+        mode: HseMode::Oscillator,
+    });
+    config.rcc.pll = Some(Pll {
+        src: PllSource::HSE,
+        prediv: PllPreDiv::DIV1,
+        mul: PllMul::MUL9,
+    });
+    config.rcc.sys = Sysclk::PLL1_P;
+    config.rcc.ahb_pre = AHBPrescaler::DIV1;
+    config.rcc.apb1_pre = APBPrescaler::DIV2;
+    config.rcc.apb2_pre = APBPrescaler::DIV1;
+    config
+}
+
+/// Bring up the clocks and build every port. Called once, from `main`.
+pub fn init() -> Board {
+    let p = embassy_stm32::init(clock_config());
+
+    let counters = Counters::new(p.TIM2, p.PA0, p.PA1, p.TIM1, p.PA8, p.PA9);
+    let abs = AbsoluteEncoder::new(p.PB8, p.PB9, p.PB10, p.PB11, p.PB12, p.PB13, p.PB14, p.PB15);
+    let spi = SpiSlaveLink::new(
+        p.SPI1, p.PA4, p.PA5, p.PA6, p.PA7, p.EXTI4, p.DMA1_CH3, p.DMA1_CH2, Irqs,
+    );
+    // The blue pill's LED is wired from 3.3 V to PC13, so high = off.
+    let led = Output::new(p.PC13, Level::High, Speed::Low);
+
+    Board {
+        counters,
+        abs,
+        spi,
+        led,
+    }
+}
+
+/// Blink the status LED so a glance tells the firmware is alive (executor running).
+#[embassy_executor::task]
+pub async fn heartbeat(mut led: Output<'static>) -> ! {
+    loop {
+        led.set_low();
+        Timer::after_millis(50).await;
+        led.set_high();
+        Timer::after_millis(950).await;
+    }
+}
