@@ -7,6 +7,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::emulator::{LogRow, Run, Summary};
@@ -144,23 +145,7 @@ fn write_svg(run: &Run, path: &Path) -> Result<()> {
         ("slave odometry", &slave, SLAVE_COLOR),
         ("master estimate", &master, MASTER_COLOR),
     ];
-    for (name, data, color) in series {
-        if data.is_empty() {
-            continue;
-        }
-        chart
-            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(2)))?
-            .label(name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::LowerRight)
-        .draw()?;
+    draw_lines(&mut chart, &series, 2, SeriesLabelPosition::LowerRight)?;
     draw_error_panel(&bottom, log)?;
     root.present()?;
     Ok(())
@@ -207,12 +192,33 @@ where
         .x_desc("time (s)")
         .y_desc("position error (mm)")
         .draw()?;
-    for (name, data, color) in [
+    let series = [
         ("slave odometry", &slave, SLAVE_COLOR),
         ("master estimate", &master, MASTER_COLOR),
-    ] {
+    ];
+    draw_lines(&mut chart, &series, 1, SeriesLabelPosition::UpperLeft)?;
+    Ok(())
+}
+
+/// Draw named line series with a legend; empty series are left out.
+fn draw_lines<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    series: &[(&str, &Vec<(f64, f64)>, RGBColor)],
+    width: u32,
+    legend_at: SeriesLabelPosition,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    for &(name, data, color) in series {
+        if data.is_empty() {
+            continue;
+        }
         chart
-            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))?
+            .draw_series(LineSeries::new(
+                data.iter().copied(),
+                color.stroke_width(width),
+            ))?
             .label(name)
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
@@ -222,7 +228,7 @@ where
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
+        .position(legend_at)
         .draw()?;
     Ok(())
 }

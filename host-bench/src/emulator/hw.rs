@@ -3,8 +3,8 @@
 //! Everything here runs on the emulation's single thread, so shared pieces are `Rc<RefCell>`.
 //! Each emulated part behaves like the real one where the firmware could tell the difference:
 //! the counters are 16-bit and wrap, the absolute encoder shows inverted Gray code, SPI moves
-//! whatever the slave had armed when the master asserted chip select (idle 0xFF if nothing),
-//! and the UART takes its byte time.
+//! whatever the slave had armed when the master asserted chip select
+//! (0x00 through the master's MISO pull-down if nothing), and the UART takes its byte time.
 
 use std::cell::RefCell;
 use std::collections::VecDeque;
@@ -73,7 +73,7 @@ pub fn spi_transfer_time(clock_hz: u32) -> Duration {
 }
 
 impl SpiWire {
-    /// The slave lost power: its shift register no longer answers (MISO idles high).
+    /// The slave lost power: its shift register no longer answers (MISO reads low).
     pub fn power_off(&mut self) {
         self.armed = None;
         self.delivered = None;
@@ -131,8 +131,8 @@ impl SlaveBus for EmuMasterBus {
                     waker.wake();
                 }
             }
-            // Nobody armed: MISO idles high.
-            None => *rx = [0xFF; SPI_FRAME_LEN],
+            // Nobody armed: the master's pull-down holds MISO low (docs/pinmap.md).
+            None => *rx = [0x00; SPI_FRAME_LEN],
         }
         Ok(())
     }
