@@ -47,7 +47,7 @@ mod firmware {
             protocol::PROTOCOL_VERSION
         );
 
-        spawner.spawn(defmt::unwrap!(board::heartbeat(board.led)));
+        spawner.spawn(defmt::unwrap!(bluepill::heartbeat(board.led)));
         spawner.spawn(defmt::unwrap!(motion(
             board.slave,
             board.serial_rx,

@@ -38,7 +38,7 @@ mod firmware {
             protocol::PROTOCOL_VERSION
         );
 
-        spawner.spawn(defmt::unwrap!(board::heartbeat(board.led)));
+        spawner.spawn(defmt::unwrap!(bluepill::heartbeat(board.led)));
         spawner.spawn(defmt::unwrap!(odometry(
             board.counters,
             board.abs,

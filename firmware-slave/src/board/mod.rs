@@ -9,9 +9,8 @@ mod abs_encoder;
 mod qei;
 mod spi_slave;
 
-use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::gpio::Output;
 use embassy_stm32::{bind_interrupts, dma, exti, interrupt, peripherals};
-use embassy_time::Timer;
 // Linked for their side effects: the RTT transport behind `defmt` and the panic handler.
 use {defmt_rtt as _, panic_probe as _};
 
@@ -33,59 +32,21 @@ pub struct Board {
     pub led: Output<'static>,
 }
 
-/// 72 MHz from the blue pill's 8 MHz crystal: PLL x9; APB1 /2 because it may not exceed 36 MHz
-/// (its timers, TIM2 and TIM4, still run at 72 MHz thanks to the x2 timer multiplier); APB2 /1
-/// so SPI1 and TIM1 run at 72 MHz.
-fn clock_config() -> embassy_stm32::Config {
-    use embassy_stm32::rcc::{
-        AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllMul, PllPreDiv, PllSource, Sysclk,
-    };
-    use embassy_stm32::time::Hertz;
-
-    let mut config = embassy_stm32::Config::default();
-    config.rcc.hse = Some(Hse {
-        freq: Hertz(8_000_000),
-        mode: HseMode::Oscillator,
-    });
-    config.rcc.pll = Some(Pll {
-        src: PllSource::HSE,
-        prediv: PllPreDiv::DIV1,
-        mul: PllMul::MUL9,
-    });
-    config.rcc.sys = Sysclk::PLL1_P;
-    config.rcc.ahb_pre = AHBPrescaler::DIV1;
-    config.rcc.apb1_pre = APBPrescaler::DIV2;
-    config.rcc.apb2_pre = APBPrescaler::DIV1;
-    config
-}
-
 /// Bring up the clocks and build every port. Called once, from `main`.
 pub fn init() -> Board {
-    let p = embassy_stm32::init(clock_config());
+    let p = embassy_stm32::init(bluepill::clock_config());
 
     let counters = Counters::new(p.TIM2, p.PA0, p.PA1, p.TIM1, p.PA8, p.PA9);
     let abs = AbsoluteEncoder::new(p.PB8, p.PB9, p.PB10, p.PB11, p.PB12, p.PB13, p.PB14, p.PB15);
     let spi = SpiSlaveLink::new(
         p.SPI1, p.PA4, p.PA5, p.PA6, p.PA7, p.EXTI4, p.DMA1_CH3, p.DMA1_CH2, Irqs,
     );
-    // The blue pill's LED is wired from 3.3 V to PC13, so high = off.
-    let led = Output::new(p.PC13, Level::High, Speed::Low);
+    let led = bluepill::status_led(p.PC13);
 
     Board {
         counters,
         abs,
         spi,
         led,
-    }
-}
-
-/// Blink the status LED so a glance tells the firmware is alive (executor running).
-#[embassy_executor::task]
-pub async fn heartbeat(mut led: Output<'static>) -> ! {
-    loop {
-        led.set_low();
-        Timer::after_millis(50).await;
-        led.set_high();
-        Timer::after_millis(950).await;
     }
 }

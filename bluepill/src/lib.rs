@@ -1,0 +1,56 @@
+//! What both omnibench computers share as STM32F103C8 "blue pill" boards: the clock tree and
+//! the status LED. Each firmware's `board/` layer builds its own peripherals on top of this.
+#![no_std]
+
+#[cfg(target_os = "none")]
+mod board {
+    use embassy_stm32::gpio::{Level, Output, Speed};
+    use embassy_stm32::peripherals::PC13;
+    use embassy_stm32::Peri;
+    use embassy_time::Timer;
+
+    /// 72 MHz from the blue pill's 8 MHz crystal: PLL x9; APB1 /2 because it may not exceed
+    /// 36 MHz (its timers, TIM2 and TIM4, still run at 72 MHz thanks to the x2 timer
+    /// multiplier); APB2 /1 so SPI1, USART1 and TIM1 run from 72 MHz.
+    pub fn clock_config() -> embassy_stm32::Config {
+        use embassy_stm32::rcc::{
+            AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllMul, PllPreDiv, PllSource, Sysclk,
+        };
+        use embassy_stm32::time::Hertz;
+
+        let mut config = embassy_stm32::Config::default();
+        config.rcc.hse = Some(Hse {
+            freq: Hertz(8_000_000),
+            mode: HseMode::Oscillator,
+        });
+        config.rcc.pll = Some(Pll {
+            src: PllSource::HSE,
+            prediv: PllPreDiv::DIV1,
+            mul: PllMul::MUL9,
+        });
+        config.rcc.sys = Sysclk::PLL1_P;
+        config.rcc.ahb_pre = AHBPrescaler::DIV1;
+        config.rcc.apb1_pre = APBPrescaler::DIV2;
+        config.rcc.apb2_pre = APBPrescaler::DIV1;
+        config
+    }
+
+    /// The on-board LED on PC13, off. It is wired from 3.3 V to the pin, so high = off.
+    pub fn status_led(pin: Peri<'static, PC13>) -> Output<'static> {
+        Output::new(pin, Level::High, Speed::Low)
+    }
+
+    /// Blink the status LED so a glance tells the firmware is alive (executor running).
+    #[embassy_executor::task]
+    pub async fn heartbeat(mut led: Output<'static>) -> ! {
+        loop {
+            led.set_low();
+            Timer::after_millis(50).await;
+            led.set_high();
+            Timer::after_millis(950).await;
+        }
+    }
+}
+
+#[cfg(target_os = "none")]
+pub use board::*;
