@@ -146,3 +146,59 @@ pub async fn spi_task(mut spi: impl SpiSlave, shared: &SlaveShared) -> ! {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::spi::MasterFrame;
+    use robot_math::sensors::binary_to_gray;
+
+    #[test]
+    fn absolute_code_is_inverted_gray_on_the_pins() {
+        let cfg = SlaveConfig::DEFAULT;
+        for code in 0..256u16 {
+            let levels = !(binary_to_gray(code) as u8);
+            assert_eq!(cfg.abs_code(levels), code);
+        }
+        let plain = SlaveConfig {
+            abs_inverted: false,
+            ..cfg
+        };
+        assert_eq!(plain.abs_code(binary_to_gray(77) as u8), 77);
+    }
+
+    #[test]
+    fn commands_are_applied_once_and_acknowledged() {
+        let shared = SlaveShared::new();
+        let set = SlaveCommand::SetPose(protocol::Pose::from_si(1.0, 2.0, 0.5));
+        let frame = MasterFrame {
+            seq: 1,
+            command_seq: 4,
+            command: set,
+        };
+        shared.receive(&frame);
+        assert_eq!(shared.take_command(), Some((4, set)));
+        shared.acknowledge(4);
+        assert_eq!(shared.frame().command_ack, 4);
+        // The master repeats the command until it sees the ack: the repeat must not re-apply.
+        shared.receive(&MasterFrame { seq: 2, ..frame });
+        assert_eq!(shared.take_command(), None);
+        // A "no command" frame with a new sequence number is acknowledged at once.
+        shared.receive(&MasterFrame {
+            seq: 3,
+            command_seq: 5,
+            command: SlaveCommand::None,
+        });
+        assert_eq!(shared.frame().command_ack, 5);
+        assert_eq!(shared.take_command(), None);
+    }
+
+    #[test]
+    fn rejected_frames_are_counted_and_wrap() {
+        let shared = SlaveShared::new();
+        for _ in 0..70_000u32 {
+            shared.count_rejected();
+        }
+        assert_eq!(shared.frame().rx_rejected, (70_000u32 % 65_536) as u16);
+    }
+}
