@@ -11,7 +11,7 @@ struct State {
     frame: SlaveFrame,
     /// A command received from the master and not yet applied by the odometry task.
     pending: Option<(u8, SlaveCommand)>,
-    /// Raw counts and pose kept at full precision for inspection (emulator, logs).
+    /// The pose at full precision (the frame rounds it to micrometres), for the emulator's scoring.
     pose: Pose2,
 }
 
