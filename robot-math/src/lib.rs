@@ -16,5 +16,6 @@ pub mod pursuit;
 pub mod se2;
 pub mod sensors;
 pub mod wheel;
+pub mod wheelset;
 
 pub use se2::{Pose2, Twist};
