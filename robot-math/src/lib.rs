@@ -11,6 +11,8 @@
 #![cfg_attr(not(test), no_std)]
 
 pub mod carriage;
+pub mod exact;
+pub mod fixed;
 pub mod omni3;
 pub mod pursuit;
 pub mod se2;

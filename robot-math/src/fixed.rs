@@ -1,0 +1,116 @@
+//! Integer trigonometry on binary angles, for the slave's FPU-less Cortex-M3.
+//!
+//! Angles are `u32` binary angles (2^32 = one turn); results are Q30 (`1 << 30` = 1.0).
+//! `sin_cos` reduces to one octant and evaluates Taylor polynomials in Q31 with 64-bit
+//! products: no floats, no tables, about 1e-9 absolute error.
+
+/// Q30 one.
+pub const ONE_Q30: i64 = 1 << 30;
+
+/// π in Q29 (for the octant reduction: an octant spans 2^29 binary-angle units).
+const PI_Q29: i64 = 1_686_629_713; // round(π · 2^29)
+
+/// Multiply two Q31 numbers, rounding to nearest.
+#[inline]
+fn mul_q31(a: i64, b: i64) -> i64 {
+    (a * b + (1 << 30)) >> 31
+}
+
+/// sin and cos of x in [0, π/4], x in Q31, results in Q31 (Taylor to x^9 / x^10: the first
+/// omitted terms are below 2e-9 on this interval).
+fn sin_cos_octant(x: i64) -> (i64, i64) {
+    let x2 = mul_q31(x, x);
+    // Horner: sin = x(1 - x²/6(1 - x²/20(1 - x²/42(1 - x²/72))))
+    const Q31: i64 = 1 << 31;
+    let s = Q31 - x2 / 72;
+    let s = Q31 - mul_q31(x2, s) / 42;
+    let s = Q31 - mul_q31(x2, s) / 20;
+    let s = Q31 - mul_q31(x2, s) / 6;
+    let sin = mul_q31(x, s);
+    // cos = 1 - x²/2(1 - x²/12(1 - x²/30(1 - x²/56(1 - x²/90))))
+    let c = Q31 - x2 / 90;
+    let c = Q31 - mul_q31(x2, c) / 56;
+    let c = Q31 - mul_q31(x2, c) / 30;
+    let c = Q31 - mul_q31(x2, c) / 12;
+    let cos = Q31 - mul_q31(x2, c) / 2;
+    (sin, cos)
+}
+
+/// (sin, cos) of a binary angle, Q30.
+pub fn sin_cos(angle: u32) -> (i64, i64) {
+    let octant = angle >> 29;
+    let within = (angle & ((1 << 29) - 1)) as i64;
+    // Odd octants run backwards from the next multiple of π/4.
+    let t = if octant & 1 == 0 {
+        within
+    } else {
+        (1 << 29) - within
+    };
+    // Radians in Q31: t / 2^29 · π/4 · 2^31 = t · π.
+    let x = (t * PI_Q29 + (1 << 28)) >> 29;
+    let (s, c) = sin_cos_octant(x);
+    let (s, c) = ((s + 1) >> 1, (c + 1) >> 1); // Q31 -> Q30
+    match octant {
+        0 => (s, c),
+        1 => (c, s),
+        2 => (c, -s),
+        3 => (s, -c),
+        4 => (-s, -c),
+        5 => (-c, -s),
+        6 => (-c, s),
+        _ => (-s, c),
+    }
+}
+
+/// Multiply by a Q30 factor, rounding to nearest (ties away from zero is fine: unbiased
+/// enough, as errors of either sign are equally likely).
+#[inline]
+pub fn mul_q30(a: i64, f: i64) -> i64 {
+    let p = a * f;
+    if p >= 0 {
+        (p + (1 << 29)) >> 30
+    } else {
+        -((-p + (1 << 29)) >> 30)
+    }
+}
+
+/// Shift right by `n` with rounding to nearest, symmetric about zero (no drift towards −∞).
+#[inline]
+pub fn shr_round(a: i64, n: u32) -> i64 {
+    if a >= 0 {
+        (a + (1 << (n - 1))) >> n
+    } else {
+        -((-a + (1 << (n - 1))) >> n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn matches_libm_everywhere() {
+        let mut worst = 0.0f64;
+        // Every 2^16-th angle, plus the octant edges.
+        let angles = (0..=u32::MAX >> 16)
+            .map(|k| k << 16)
+            .chain((0..8).map(|o| o << 29))
+            .chain((1..8).map(|o| (o << 29) - 1));
+        for a in angles {
+            let rad = a as f64 / 4_294_967_296.0 * 2.0 * core::f64::consts::PI;
+            let (s, c) = sin_cos(a);
+            let es = (s as f64 / ONE_Q30 as f64 - rad.sin()).abs();
+            let ec = (c as f64 / ONE_Q30 as f64 - rad.cos()).abs();
+            worst = worst.max(es).max(ec);
+        }
+        assert!(worst < 4e-9, "worst error {worst:e}");
+    }
+
+    #[test]
+    fn rounding_shifts_are_symmetric() {
+        assert_eq!(shr_round(5, 1), 3);
+        assert_eq!(shr_round(-5, 1), -3);
+        assert_eq!(shr_round(4, 2), 1);
+        assert_eq!(mul_q30(-(1 << 30), 3), -3);
+    }
+}
