@@ -17,6 +17,7 @@ pub mod omni3;
 pub mod pursuit;
 pub mod se2;
 pub mod sensors;
+pub mod ticks;
 pub mod wheel;
 pub mod wheelset;
 
