@@ -139,7 +139,7 @@ fn write_svg(run: &Run, path: &Path) -> Result<()> {
         .x_desc("x (m)")
         .y_desc("y (m)")
         .draw()?;
-    let series = [
+    let series: [Series; 4] = [
         ("target", &target, RGBColor(150, 150, 150)),
         ("ground truth", &truth, BLACK),
         ("slave odometry", &slave, SLAVE_COLOR),
@@ -192,7 +192,7 @@ where
         .x_desc("time (s)")
         .y_desc("position error (mm)")
         .draw()?;
-    let series = [
+    let series: [Series; 2] = [
         ("slave odometry", &slave, SLAVE_COLOR),
         ("master estimate", &master, MASTER_COLOR),
     ];
@@ -200,10 +200,13 @@ where
     Ok(())
 }
 
+/// A named line in a plot: legend label, points, colour.
+type Series<'a> = (&'a str, &'a [(f64, f64)], RGBColor);
+
 /// Draw named line series with a legend; empty series are left out.
 fn draw_lines<'a, DB: DrawingBackend + 'a>(
     chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
-    series: &[(&str, &Vec<(f64, f64)>, RGBColor)],
+    series: &[Series],
     width: u32,
     legend_at: SeriesLabelPosition,
 ) -> Result<()>

@@ -206,14 +206,14 @@ impl ExactOdometry {
     fn step(&mut self, dq: &[i64; MAX_ENCODERS]) {
         let p = &self.p;
         let (mut dx, mut dy, mut dth) = (0i64, 0i64, 0u64);
-        for j in 0..MAX_ENCODERS {
+        for (((&d, &kx), &ky), &kth) in dq.iter().zip(&p.kx).zip(&p.ky).zip(&p.kth) {
             // Whole counts and the Q16 fraction apart, so neither product can overflow:
             // constant (Q44) × whole counts (bounded by the chunking) is Q44 directly.
-            let (whole, frac) = (dq[j] >> 16, dq[j] & 0xFFFF);
-            dx += p.kx[j] * whole + shr_round(p.kx[j] * frac, 16);
-            dy += p.ky[j] * whole + shr_round(p.ky[j] * frac, 16);
+            let (whole, frac) = (d >> 16, d & 0xFFFF);
+            dx += kx * whole + shr_round(kx * frac, 16);
+            dy += ky * whole + shr_round(ky * frac, 16);
             // Heading lives modulo a turn: wrapping arithmetic is exact arithmetic here.
-            dth = dth.wrapping_add(p.kth[j].wrapping_mul(dq[j]) as u64);
+            dth = dth.wrapping_add(kth.wrapping_mul(d) as u64);
         }
         // Body displacement, Q44 -> Q32.
         let (dx, dy) = (shr_round(dx, 12), shr_round(dy, 12));

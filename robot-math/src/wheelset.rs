@@ -94,7 +94,8 @@ impl WheelSolver {
                     }
                 }
                 let scale = (jtj[0][0] + jtj[1][1] + jtj[2][2]) / 3.0;
-                if !(scale > 0.0) {
+                // NaN geometry gives a NaN scale: refuse it with the zero case.
+                if scale.is_nan() || scale <= 0.0 {
                     return Err(GeometryError::Degenerate);
                 }
                 let inv =
