@@ -3,4 +3,7 @@
 
 pub mod emulator;
 pub mod plant;
+pub mod replay;
 pub mod report;
+pub mod robot;
+pub mod tickstream;

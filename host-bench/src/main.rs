@@ -49,6 +49,22 @@ enum Command {
         #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
         fault_host_silent_after: Option<f64>,
     },
+    /// Run odometry estimators over a tick stream (docs/tick-stream.md) and score them
+    /// against its truth rows.
+    Replay {
+        /// Robot description (docs/robot-format.md) [default: the stream's `# robot:` line].
+        #[arg(long, value_name = "FILE")]
+        robot: Option<PathBuf>,
+        /// Tick stream file (.csv or .csv.gz).
+        #[arg(long, value_name = "FILE")]
+        ticks: PathBuf,
+        /// Estimator to run, or `all`.
+        #[arg(long, default_value = "all")]
+        algorithm: String,
+        /// Print {"algorithms":[{name, final_error_m, max_error_m, final_heading_error_rad, path_length_m}...]}.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -102,7 +118,63 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Replay {
+            robot,
+            ticks,
+            algorithm,
+            json,
+        } => run_replay(robot, ticks, algorithm, json),
     }
+}
+
+fn run_replay(
+    robot: Option<PathBuf>,
+    ticks: PathBuf,
+    algorithm: String,
+    json: bool,
+) -> anyhow::Result<()> {
+    use host_bench::{replay, robot::Robot, tickstream};
+    let stream = tickstream::read(&ticks)?;
+    let robot_path = match robot {
+        Some(p) => p,
+        None => stream.robot_path(&ticks).ok_or_else(|| {
+            anyhow::anyhow!(
+                "{}: no `# robot:` line; name the robot with --robot FILE",
+                ticks.display()
+            )
+        })?,
+    };
+    let robot = Robot::load(&robot_path)?;
+    let names: Vec<&str> = if algorithm == "all" {
+        replay::ALGORITHMS.to_vec()
+    } else {
+        vec![algorithm.as_str()]
+    };
+    let scores = names
+        .iter()
+        .map(|name| replay::replay(&robot, &stream, name))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    if json {
+        println!("{}", serde_json::json!({ "algorithms": scores }));
+    } else {
+        println!(
+            "{} on {} ({} events)",
+            ticks.display(),
+            robot.name,
+            stream.events.len()
+        );
+        for s in &scores {
+            println!(
+                "{:<8} final error {:9.4} mm, max {:9.4} mm, final heading error {:+.5} deg, path {:.3} m",
+                s.name,
+                s.final_error_m * 1e3,
+                s.max_error_m * 1e3,
+                s.final_heading_error_rad.to_degrees(),
+                s.path_length_m
+            );
+        }
+    }
+    Ok(())
 }
 
 fn run_sweep(
