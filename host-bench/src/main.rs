@@ -61,6 +61,10 @@ enum Command {
         /// Estimator to run, or `all`.
         #[arg(long, default_value = "all")]
         algorithm: String,
+        /// Read the encoders as hardware counters sampled at this rate (Hz) instead of as
+        /// time-stamped ticks.
+        #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+        counts_rate: Option<f64>,
         /// Print {"algorithms":[{name, final_error_m, max_error_m, final_heading_error_rad, path_length_m}...]}.
         #[arg(long)]
         json: bool,
@@ -122,8 +126,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             robot,
             ticks,
             algorithm,
+            counts_rate,
             json,
-        } => run_replay(robot, ticks, algorithm, json),
+        } => run_replay(robot, ticks, algorithm, counts_rate, json),
     }
 }
 
@@ -131,9 +136,13 @@ fn run_replay(
     robot: Option<PathBuf>,
     ticks: PathBuf,
     algorithm: String,
+    counts_rate: Option<f64>,
     json: bool,
 ) -> anyhow::Result<()> {
     use host_bench::{replay, robot::Robot, tickstream};
+    let mode = counts_rate.map_or(replay::Mode::Timestamps, |rate_hz| replay::Mode::Counts {
+        rate_hz,
+    });
     let stream = tickstream::read(&ticks)?;
     let robot_path = match robot {
         Some(p) => p,
@@ -152,13 +161,16 @@ fn run_replay(
     };
     let scores = names
         .iter()
-        .map(|name| replay::replay(&robot, &stream, name))
+        .map(|name| replay::replay(&robot, &stream, name, mode))
         .collect::<anyhow::Result<Vec<_>>>()?;
     if json {
-        println!("{}", serde_json::json!({ "algorithms": scores }));
+        println!(
+            "{}",
+            serde_json::json!({ "mode": mode.to_string(), "algorithms": scores })
+        );
     } else {
         println!(
-            "{} on {} ({} events)",
+            "{} on {} ({} events), encoders read as {mode}",
             ticks.display(),
             robot.name,
             stream.events.len()

@@ -1,11 +1,16 @@
 //! `host-bench replay`: run odometry estimators over a recorded or generated tick stream and
 //! score them against the stream's ground-truth rows.
 //!
-//! `exact` runs in tick-timestamp mode: every tick instant is an update, at which the wheels
-//! that did not tick are interpolated from their own last tick interval
-//! ([`robot_math::ticks::TickTracker`]), and the fixed-point integrator
-//! ([`robot_math::exact::ExactOdometry`]) moves the pose. Truth rows are scored at their own
-//! instants, with every wheel interpolated to that instant.
+//! `exact` runs in either sensor mode of the slave:
+//! * [`Mode::Timestamps`] (edge interrupts / input capture): every tick instant is an update,
+//!   at which the wheels that did not tick are interpolated from their own last tick interval
+//!   ([`robot_math::ticks::TickTracker`]); truth rows are scored at their own instants, with
+//!   every wheel interpolated to that instant.
+//! * [`Mode::Counts`] (hardware quadrature counters read at a fixed rate): whole counts sampled
+//!   every period; truth rows are scored with one extra sample at their instant (on the
+//!   sampling grid, as the generator's truth rows are, that is the regular sample itself).
+//!
+//! Either way the fixed-point integrator ([`robot_math::exact::ExactOdometry`]) moves the pose.
 
 use anyhow::{bail, Context, Result};
 use robot_math::exact::{ExactOdometry, ExactParams, FixedPose, MAX_ENCODERS};
@@ -20,6 +25,24 @@ use crate::tickstream::{Event, TickStream};
 
 /// The estimators `replay` knows, in report order.
 pub const ALGORITHMS: &[&str] = &["exact"];
+
+/// How the estimator sees the encoders.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Mode {
+    /// Every tick with its time stamp.
+    Timestamps,
+    /// Whole counts sampled at a fixed rate.
+    Counts { rate_hz: f64 },
+}
+
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Mode::Timestamps => f.write_str("timestamps"),
+            Mode::Counts { rate_hz } => write!(f, "counts@{rate_hz}Hz"),
+        }
+    }
+}
 
 /// How one estimator did on one stream.
 #[derive(Clone, Debug, Serialize)]
@@ -36,10 +59,15 @@ pub struct Score {
     pub track: Vec<(f64, Pose2)>,
 }
 
-/// Run `algorithm` over `stream` for `robot`.
-pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str) -> Result<Score> {
+/// Run `algorithm` over `stream` for `robot`, seeing the encoders as `mode` says.
+pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -> Result<Score> {
+    if let Mode::Counts { rate_hz } = mode {
+        if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1e9) {
+            bail!("counts sampling rate must be a positive number of Hz up to 1e9, got {rate_hz}");
+        }
+    }
     match algorithm {
-        "exact" => replay_exact(robot, stream),
+        "exact" => replay_exact(robot, stream, mode),
         other => bail!(
             "unknown algorithm {other:?}; available: {}, or all",
             ALGORITHMS.join(", ")
@@ -47,7 +75,7 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str) -> Result<Sco
     }
 }
 
-fn replay_exact(robot: &Robot, stream: &TickStream) -> Result<Score> {
+fn replay_exact(robot: &Robot, stream: &TickStream, mode: Mode) -> Result<Score> {
     if robot.carriage.is_some() {
         bail!(
             "robot {}: `exact` replay of a swivel-carriage robot (seed 004 layout) is not built yet",
@@ -90,15 +118,30 @@ fn replay_exact(robot: &Robot, stream: &TickStream) -> Result<Score> {
         .unwrap_or_default();
     let mut odo = ExactOdometry::new(params, FixedPose::from_pose2(start), &[0; MAX_ENCODERS]);
     let mut wheels = [TickTracker::new(); MAX_ENCODERS];
-    let positions = |wheels: &[TickTracker; MAX_ENCODERS], t: u64| -> [i64; MAX_ENCODERS] {
+    let interpolated = |wheels: &[TickTracker; MAX_ENCODERS], t: u64| -> [i64; MAX_ENCODERS] {
         core::array::from_fn(|j| if j < n { wheels[j].position_q16(t) } else { 0 })
     };
+    let whole = |wheels: &[TickTracker; MAX_ENCODERS]| -> [i64; MAX_ENCODERS] {
+        core::array::from_fn(|j| wheels[j].count())
+    };
+    let period_ns = match mode {
+        Mode::Counts { rate_hz } => Some(((1e9 / rate_hz).round() as u64).max(1)),
+        Mode::Timestamps => None,
+    };
+    let mut next_sample = period_ns.map(|p| stream.events.first().map_or(0, |e| e.t_ns()) + p);
 
     let mut score = Scorer::default();
     let events = &stream.events;
     let mut i = 0;
     while i < events.len() {
         let t = events[i].t_ns();
+        // Fixed-rate samples strictly before this instant see the counts as they were.
+        if let (Some(p), Some(next)) = (period_ns, next_sample.as_mut()) {
+            while *next < t {
+                odo.update_counts(&whole(&wheels));
+                *next += p;
+            }
+        }
         // Everything at one instant first: ticks together, then the truth at that instant.
         let mut j = i;
         let mut ticked = false;
@@ -119,8 +162,21 @@ fn replay_exact(robot: &Robot, stream: &TickStream) -> Result<Score> {
         let has_truth = events[i..j]
             .iter()
             .any(|e| matches!(e, Event::Truth { .. }));
-        if ticked || has_truth {
-            odo.update_q16(&positions(&wheels, t));
+        match (period_ns, next_sample.as_mut()) {
+            (Some(p), Some(next)) => {
+                // A regular sample at this very instant, or a scoring one for a truth row.
+                if *next == t || has_truth {
+                    odo.update_counts(&whole(&wheels));
+                }
+                if *next == t {
+                    *next += p;
+                }
+            }
+            _ => {
+                if ticked || has_truth {
+                    odo.update_q16(&interpolated(&wheels, t));
+                }
+            }
         }
         for e in &events[i..j] {
             if let Event::Truth {
