@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Prove that the `exact` odometry update path has no floating point on the STM32F103.
+"""Prove that the slave's default odometry path (`exact`) has no floating point on the STM32F103.
 
 Builds robot-math for thumbv7m-none-eabi with the `objcheck` profile (release without LTO, so
 the .rlib holds machine code), disassembles it with llvm-objdump, and walks the call graph
@@ -19,6 +19,12 @@ from pathlib import Path
 ROOTS = [
     "robot_math::exact::ExactOdometry::update_q16",
     "robot_math::exact::ExactOdometry::update_counts",
+    # The slave's default: seed 004's carriage on the exact integrator.
+    "robot_math::carriage::CarriageExact::update",
+    "robot_math::carriage::CarriageExact::set_body",
+    # Wire conversions the slave does on every update and every set-pose.
+    "robot_math::exact::FixedPose::micrometres",
+    "robot_math::exact::FixedPose::from_micrometres",
 ]
 FLOAT = re.compile(r"^(__aeabi_[fd]|__aeabi_[il]2[fd]|__aeabi_ui2[fd]|__(add|sub|mul|div|neg|cmp|eq|ne|lt|le|gt|ge|unord)[sdt]f[23]|__(fix|float)(uns)?[sdt]i|__extend|__trunc|__pow|sin|cos|atan|sqrt|floor|round|libm::)")
 VFP = re.compile(r"\bv(add|sub|mul|div|mov|ldr|str|cvt|cmp|sqrt|neg|abs|fma)\.?", re.I)

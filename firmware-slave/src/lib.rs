@@ -5,7 +5,9 @@
 //! Two tasks, joined in [`run`]:
 //! * the **odometry task** samples the counters and the absolute encoder on a fixed-rate
 //!   ticker, extends the 16-bit counts to 64-bit totals, integrates the pose and publishes an
-//!   [`protocol::spi::SlaveFrame`];
+//!   [`protocol::spi::SlaveFrame`]. The integrator is `exact` in fixed point
+//!   ([`robot_math::carriage::CarriageExact`]): integer-only on every update, as the FPU-less
+//!   STM32F103 wants (`scripts/check-no-float.py` proves it from the disassembly);
 //! * the **SPI task** arms the latest frame for the master's next poll, and checks and applies
 //!   what the master sent back (commands such as set-pose, acknowledged by sequence number).
 #![cfg_attr(not(test), no_std)]
@@ -16,7 +18,8 @@ mod shared;
 use embassy_futures::join::join;
 use embassy_time::{Duration, Instant, Ticker};
 use protocol::spi::{self, slave_status, MasterFrame, SlaveCommand, SPI_FRAME_LEN};
-use robot_math::carriage::{CarriageGeometry, CarriageOdometry};
+use robot_math::carriage::{CarriageExact, CarriageGeometry};
+use robot_math::exact::FixedPose;
 use robot_math::sensors::{gray_to_binary, CounterExtender};
 use robot_math::Pose2;
 
@@ -75,12 +78,20 @@ pub async fn odometry_task(
 ) -> ! {
     let period = Duration::from_micros(config.update_period_us as u64);
     let mut extenders = counters.read_raw().map(CounterExtender::new);
-    let mut odometry = CarriageOdometry::new(
-        config.geometry,
+    // The integer constants are derived once, here, with (soft) floats; every update after
+    // this is integer-only.
+    let Some(mut odometry) = CarriageExact::new(
+        &config.geometry,
         Pose2::default(),
         [0; MEASURING_WHEELS],
         config.abs_code(abs.read_levels()),
-    );
+    ) else {
+        // An impossible geometry is a build mistake: publish nothing, so the master's
+        // freshness watchdog sees a dead slave and keeps the motors off.
+        loop {
+            embassy_time::Timer::after_secs(3600).await;
+        }
+    };
     let mut ticker = Ticker::every(period);
     let mut next_due = Instant::now() + period;
     let mut seq: u16 = 0;
@@ -109,8 +120,10 @@ pub async fn odometry_task(
         if let Some((command_seq, command)) = shared.take_command() {
             match command {
                 SlaveCommand::SetPose(p) => {
-                    let (x, y, theta) = p.to_si();
-                    odometry.reset(Pose2::new(x, y, theta), totals, code);
+                    let pose = FixedPose::from_micrometres(p.x_um, p.y_um, p.heading.0);
+                    // Counts keep running: the integrator restarts from here, at these counts.
+                    odometry.update(totals, code);
+                    odometry.set_body(pose, code);
                 }
                 SlaveCommand::None => {}
             }
@@ -124,7 +137,7 @@ pub async fn odometry_task(
             // The wire carries the low 32 bits; the master only ever needs differences.
             *slot = total as i32;
         }
-        shared.publish(seq, now.as_micros() as u32, counts, code, &pose, status);
+        shared.publish(seq, now.as_micros() as u32, counts, code, pose, status);
     }
 }
 

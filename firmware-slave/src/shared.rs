@@ -4,7 +4,8 @@ use core::cell::RefCell;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use protocol::spi::{MasterFrame, SlaveCommand, SlaveFrame, ENCODER_SLOTS};
-use protocol::Pose;
+use protocol::{BinaryAngle, Pose};
+use robot_math::exact::FixedPose;
 use robot_math::Pose2;
 
 struct State {
@@ -12,7 +13,7 @@ struct State {
     /// A command received from the master and not yet applied by the odometry task.
     pending: Option<(u8, SlaveCommand)>,
     /// The pose at full precision (the frame rounds it to micrometres), for the emulator's scoring.
-    pose: Pose2,
+    pose: FixedPose,
 }
 
 /// The slave's shared state. `const`-constructible so the board can keep it in a `static`.
@@ -46,10 +47,10 @@ impl SlaveShared {
                     rx_rejected: 0,
                 },
                 pending: None,
-                pose: Pose2 {
-                    x: 0.0,
-                    y: 0.0,
-                    theta: 0.0,
+                pose: FixedPose {
+                    x: 0,
+                    y: 0,
+                    theta: 0,
                 },
             })),
         }
@@ -64,9 +65,10 @@ impl SlaveShared {
         self.with(|s| s.frame)
     }
 
-    /// The latest pose at full precision (the frame rounds to micrometres).
+    /// The latest pose at full precision (the frame rounds to micrometres), in SI units.
+    /// For the host (emulator, tests): the conversion uses floats.
     pub fn pose(&self) -> Pose2 {
-        self.with(|s| s.pose)
+        self.with(|s| s.pose).to_pose2()
     }
 
     pub(crate) fn publish(
@@ -75,10 +77,15 @@ impl SlaveShared {
         time_us: u32,
         counts: [i32; ENCODER_SLOTS],
         abs_code: u16,
-        pose: &Pose2,
+        pose: FixedPose,
         status: u16,
     ) {
-        let wire = Pose::from_si(pose.x, pose.y, pose.theta);
+        let (x_um, y_um) = pose.micrometres();
+        let wire = Pose {
+            x_um,
+            y_um,
+            heading: BinaryAngle(pose.heading_bam()),
+        };
         self.with(|s| {
             s.frame.seq = seq;
             s.frame.time_us = time_us;
@@ -86,7 +93,7 @@ impl SlaveShared {
             s.frame.abs_code = abs_code;
             s.frame.pose = wire;
             s.frame.status = status;
-            s.pose = *pose;
+            s.pose = pose;
         });
     }
 

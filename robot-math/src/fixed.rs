@@ -74,6 +74,16 @@ pub fn mul_q30(a: i64, f: i64) -> i64 {
     }
 }
 
+/// `round(a · f / 2^30)` for |a| < 2^46 and |f| <= 2^31 without overflowing 64 bits: `a` is
+/// split into a high part (exact multiple of 2^16) and a 16-bit low part, each multiplied and
+/// rounded separately (at most one unit of error in the result).
+#[inline]
+pub fn mul_q30_wide(a: i64, f: i64) -> i64 {
+    let hi = a >> 16;
+    let lo = a & 0xFFFF;
+    shr_round(hi * f, 14) + shr_round(lo * f, 30)
+}
+
 /// Shift right by `n` with rounding to nearest, symmetric about zero (no drift towards −∞).
 #[inline]
 pub fn shr_round(a: i64, n: u32) -> i64 {
@@ -104,6 +114,29 @@ mod tests {
             worst = worst.max(es).max(ec);
         }
         assert!(worst < 4e-9, "worst error {worst:e}");
+    }
+
+    #[test]
+    fn wide_multiply_matches_exact_arithmetic() {
+        for &a in &[
+            0i64,
+            1,
+            -1,
+            123_456_789_012,
+            -(1 << 45) + 7,
+            (1 << 45) - 3,
+            65_535,
+            -65_536,
+        ] {
+            for &f in &[0i64, 1 << 30, -(1 << 30), 1 << 31, 759_250_124, -3] {
+                let exact = (a as i128 * f as i128) as f64 / (1u64 << 30) as f64;
+                let got = mul_q30_wide(a, f);
+                assert!(
+                    (got as f64 - exact).abs() <= 1.0,
+                    "{a} * {f}: {got} vs {exact}"
+                );
+            }
+        }
     }
 
     #[test]

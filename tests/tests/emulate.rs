@@ -2,7 +2,7 @@
 //! driven over the real serial protocol, closing the loop through the simulated robot.
 //!
 //! Bounds are set from measurement (README, "Accuracy"): over seeds 1-30 the slave's final
-//! error on the default scenario is 0.014-0.49 mm (`host-bench emulate --sweep 30`), so 1 mm
+//! error on the default scenario is at most 0.51 mm (`host-bench emulate --sweep 30`), so 1 mm
 //! leaves a 2x margin and still fails on any real regression; the heading error is bounded by
 //! half a step of the 8-bit absolute encoder (the slave reads body heading through it) plus
 //! the carriage heading's count quantisation.
