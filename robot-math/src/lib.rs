@@ -6,8 +6,9 @@
 //! * a wheel `i` at r_i = (x_i, y_i) rolling along the unit vector u_i has rolling speed
 //!   s_i' = u_ix·v_x + u_iy·v_y + ω·(x_i·u_iy − y_i·u_ix)   (SPEC §2, the general wheel model).
 //!
-//! Floats (f64) are used here for now; the slave's default integer path comes with the
-//! odometry suite (issue 3).
+//! Floats (f64) are fine on the host and in the reference (oracle) implementations; the
+//! slave's default path ([`exact`], [`carriage::CarriageExact`], [`fixed`], [`ticks`]) is
+//! integer-only on every update.
 #![cfg_attr(not(test), no_std)]
 
 pub mod carriage;
