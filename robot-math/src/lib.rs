@@ -11,9 +11,11 @@
 //! integer-only on every update.
 #![cfg_attr(not(test), no_std)]
 
+pub mod arc;
 pub mod carriage;
 pub mod exact;
 pub mod fixed;
+pub mod lut;
 pub mod omni3;
 pub mod pursuit;
 pub mod se2;
