@@ -1,7 +1,8 @@
 //! `host-bench replay`: run odometry estimators over a recorded or generated tick stream and
 //! score them against the stream's ground-truth rows.
 //!
-//! `exact` runs in either sensor mode of the slave:
+//! `arc` (seed 004's baseline) works on whole counts at every update. `exact` runs in either
+//! sensor mode of the slave:
 //! * [`Mode::Timestamps`] (edge interrupts / input capture): every tick instant is an update,
 //!   at which the wheels that did not tick are interpolated from their own last tick interval
 //!   ([`robot_math::ticks::TickTracker`]); truth rows are scored at their own instants, with
@@ -13,6 +14,7 @@
 //! Either way the fixed-point integrator ([`robot_math::exact::ExactOdometry`]) moves the pose.
 
 use anyhow::{bail, Context, Result};
+use robot_math::arc::ArcOdometry;
 use robot_math::exact::{ExactOdometry, ExactParams, FixedPose, MAX_ENCODERS};
 use robot_math::se2::wrap_angle;
 use robot_math::ticks::TickTracker;
@@ -24,7 +26,7 @@ use crate::robot::Robot;
 use crate::tickstream::{Event, TickStream};
 
 /// The estimators `replay` knows, in report order.
-pub const ALGORITHMS: &[&str] = &["exact"];
+pub const ALGORITHMS: &[&str] = &["arc", "exact"];
 
 /// How the estimator sees the encoders.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,9 +56,69 @@ pub struct Score {
     pub path_length_m: f64,
     /// Truth rows scored.
     pub truth_rows: usize,
-    /// The estimate at every truth row: (t s, x m, y m, θ rad).
+    /// The estimate at every truth row: (t s, pose).
     #[serde(skip)]
     pub track: Vec<(f64, Pose2)>,
+}
+
+/// What the replay driver tells an estimator. The trackers hold every tick up to `t_ns`.
+trait Estimator {
+    /// A single tick, as it happens (for estimators that use individual tick times).
+    fn tick(&mut self, _t_ns: u64, _encoder: usize, _step: i8) {}
+    /// An update at `t_ns`. `interpolate` is true in tick-timestamp mode (the estimator may
+    /// place wheels between their ticks), false when it sees whole sampled counts.
+    fn update(
+        &mut self,
+        t_ns: u64,
+        wheels: &[TickTracker; MAX_ENCODERS],
+        interpolate: bool,
+    ) -> Pose2;
+}
+
+struct Exact {
+    odo: ExactOdometry,
+    n: usize,
+}
+
+impl Estimator for Exact {
+    fn update(
+        &mut self,
+        t_ns: u64,
+        wheels: &[TickTracker; MAX_ENCODERS],
+        interpolate: bool,
+    ) -> Pose2 {
+        let n = self.n;
+        let q: [i64; MAX_ENCODERS] = core::array::from_fn(|j| match (j < n, interpolate) {
+            (false, _) => 0,
+            (true, true) => wheels[j].position_q16(t_ns),
+            (true, false) => wheels[j].count() << 16,
+        });
+        self.odo.update_q16(&q).to_pose2()
+    }
+}
+
+struct Arc {
+    odo: ArcOdometry,
+    n: usize,
+}
+
+impl Estimator for Arc {
+    fn update(
+        &mut self,
+        _t_ns: u64,
+        wheels: &[TickTracker; MAX_ENCODERS],
+        _interpolate: bool,
+    ) -> Pose2 {
+        // The arc algorithm works on whole counts, in either mode (seed 004 samples counters).
+        let c: [f64; MAX_ENCODERS] = core::array::from_fn(|j| {
+            if j < self.n {
+                wheels[j].count() as f64
+            } else {
+                0.0
+            }
+        });
+        self.odo.update(&c[..self.n])
+    }
 }
 
 /// Run `algorithm` over `stream` for `robot`, seeing the encoders as `mode` says.
@@ -66,26 +128,17 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
             bail!("counts sampling rate must be a positive number of Hz up to 1e9, got {rate_hz}");
         }
     }
-    match algorithm {
-        "exact" => replay_exact(robot, stream, mode),
-        other => bail!(
-            "unknown algorithm {other:?}; available: {}, or all",
-            ALGORITHMS.join(", ")
-        ),
-    }
-}
-
-fn replay_exact(robot: &Robot, stream: &TickStream, mode: Mode) -> Result<Score> {
     if robot.carriage.is_some() {
         bail!(
-            "robot {}: `exact` replay of a swivel-carriage robot (seed 004 layout) is not built yet",
+            "robot {}: replay of a swivel-carriage robot (seed 004 layout) is not built yet; \
+             `host-bench emulate` runs that layout",
             robot.name
         );
     }
     let n = robot.encoders.len();
     if n > MAX_ENCODERS {
         bail!(
-            "robot {}: `exact` takes at most {MAX_ENCODERS} encoders, the robot has {n}",
+            "robot {}: replay takes at most {MAX_ENCODERS} encoders, the robot has {n}",
             robot.name
         );
     }
@@ -96,13 +149,6 @@ fn replay_exact(robot: &Robot, stream: &TickStream, mode: Mode) -> Result<Score>
         )
     })?;
     let k: Vec<f64> = robot.encoders.iter().map(|e| e.metres_per_count).collect();
-    let params = ExactParams::new(&solver, &k).map_err(|e| {
-        anyhow::anyhow!(
-            "robot {}: geometry out of fixed-point range: {e:?}",
-            robot.name
-        )
-    })?;
-
     let start = stream
         .events
         .iter()
@@ -116,20 +162,48 @@ fn replay_exact(robot: &Robot, stream: &TickStream, mode: Mode) -> Result<Score>
             _ => None,
         })
         .unwrap_or_default();
-    let mut odo = ExactOdometry::new(params, FixedPose::from_pose2(start), &[0; MAX_ENCODERS]);
+    let mut estimator: Box<dyn Estimator> = match algorithm {
+        "exact" => {
+            let params = ExactParams::new(&solver, &k).map_err(|e| {
+                anyhow::anyhow!(
+                    "robot {}: geometry out of fixed-point range: {e:?}",
+                    robot.name
+                )
+            })?;
+            Box::new(Exact {
+                odo: ExactOdometry::new(params, FixedPose::from_pose2(start), &[0; MAX_ENCODERS]),
+                n,
+            })
+        }
+        "arc" => Box::new(Arc {
+            odo: ArcOdometry::new(solver, &k, start, &vec![0.0; n]),
+            n,
+        }),
+        other => bail!(
+            "unknown algorithm {other:?}; available: {}, or all",
+            ALGORITHMS.join(", ")
+        ),
+    };
+    drive(robot, stream, mode, n, estimator.as_mut())?.finish(algorithm)
+}
+
+/// Walk the stream in time order: ticks into the trackers (and the estimator), updates at
+/// every tick instant (time stamps) or every sample (counts), scores at every truth row.
+fn drive(
+    robot: &Robot,
+    stream: &TickStream,
+    mode: Mode,
+    n: usize,
+    est: &mut dyn Estimator,
+) -> Result<Scorer> {
     let mut wheels = [TickTracker::new(); MAX_ENCODERS];
-    let interpolated = |wheels: &[TickTracker; MAX_ENCODERS], t: u64| -> [i64; MAX_ENCODERS] {
-        core::array::from_fn(|j| if j < n { wheels[j].position_q16(t) } else { 0 })
-    };
-    let whole = |wheels: &[TickTracker; MAX_ENCODERS]| -> [i64; MAX_ENCODERS] {
-        core::array::from_fn(|j| wheels[j].count())
-    };
     let period_ns = match mode {
         Mode::Counts { rate_hz } => Some(((1e9 / rate_hz).round() as u64).max(1)),
         Mode::Timestamps => None,
     };
+    let interpolate = period_ns.is_none();
     let mut next_sample = period_ns.map(|p| stream.events.first().map_or(0, |e| e.t_ns()) + p);
-
+    let mut pose = None;
     let mut score = Scorer::default();
     let events = &stream.events;
     let mut i = 0;
@@ -138,7 +212,7 @@ fn replay_exact(robot: &Robot, stream: &TickStream, mode: Mode) -> Result<Score>
         // Fixed-rate samples strictly before this instant see the counts as they were.
         if let (Some(p), Some(next)) = (period_ns, next_sample.as_mut()) {
             while *next < t {
-                odo.update_counts(&whole(&wheels));
+                pose = Some(est.update(*next, &wheels, false));
                 *next += p;
             }
         }
@@ -155,6 +229,7 @@ fn replay_exact(robot: &Robot, stream: &TickStream, mode: Mode) -> Result<Score>
                     );
                 }
                 wheels[e].tick(t, step);
+                est.tick(t, e, step);
                 ticked = true;
             }
             j += 1;
@@ -162,21 +237,19 @@ fn replay_exact(robot: &Robot, stream: &TickStream, mode: Mode) -> Result<Score>
         let has_truth = events[i..j]
             .iter()
             .any(|e| matches!(e, Event::Truth { .. }));
-        match (period_ns, next_sample.as_mut()) {
+        let due = match (period_ns, next_sample.as_mut()) {
+            // A regular sample at this very instant, or a scoring one for a truth row.
             (Some(p), Some(next)) => {
-                // A regular sample at this very instant, or a scoring one for a truth row.
-                if *next == t || has_truth {
-                    odo.update_counts(&whole(&wheels));
-                }
-                if *next == t {
+                let regular = *next == t;
+                if regular {
                     *next += p;
                 }
+                regular || has_truth
             }
-            _ => {
-                if ticked || has_truth {
-                    odo.update_q16(&interpolated(&wheels, t));
-                }
-            }
+            _ => ticked || has_truth,
+        };
+        if due {
+            pose = Some(est.update(t, &wheels, interpolate));
         }
         for e in &events[i..j] {
             if let Event::Truth {
@@ -186,12 +259,13 @@ fn replay_exact(robot: &Robot, stream: &TickStream, mode: Mode) -> Result<Score>
                 ..
             } = *e
             {
-                score.add(t, odo.pose().to_pose2(), Pose2::new(x_m, y_m, theta_rad));
+                let estimate = pose.unwrap_or_else(|| est.update(t, &wheels, interpolate));
+                score.add(t, estimate, Pose2::new(x_m, y_m, theta_rad));
             }
         }
         i = j;
     }
-    score.finish("exact")
+    Ok(score)
 }
 
 #[derive(Default)]
