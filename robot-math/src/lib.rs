@@ -21,6 +21,7 @@ pub mod pursuit;
 pub mod se2;
 pub mod sensors;
 pub mod ticks;
+pub mod timing;
 pub mod wheel;
 pub mod wheelset;
 
