@@ -12,6 +12,47 @@ use robot_math::omni3::Omni3;
 use robot_math::pursuit::{field_to_body, pursue, SegmentTarget};
 use robot_math::{Pose2, Twist};
 
+/// A small fixed-capacity FIFO of slave commands (no allocation on the board).
+#[derive(Clone, Copy, Debug)]
+struct CommandQueue {
+    items: [SlaveCommand; 4],
+    head: usize,
+    len: usize,
+}
+
+impl CommandQueue {
+    const fn new() -> Self {
+        CommandQueue {
+            items: [SlaveCommand::None; 4],
+            head: 0,
+            len: 0,
+        }
+    }
+    fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    fn push(&mut self, c: SlaveCommand) -> bool {
+        if self.len == self.items.len() {
+            return false;
+        }
+        self.items[(self.head + self.len) % self.items.len()] = c;
+        self.len += 1;
+        true
+    }
+    fn front(&self) -> Option<SlaveCommand> {
+        (self.len > 0).then(|| self.items[self.head])
+    }
+    /// Drop the front command; false if there was none.
+    fn pop(&mut self) -> bool {
+        if self.len == 0 {
+            return false;
+        }
+        self.head = (self.head + 1) % self.items.len();
+        self.len -= 1;
+        true
+    }
+}
+
 /// What the control step wants done with the motors.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Drive {
@@ -34,9 +75,10 @@ pub struct Controller {
     last_host_rx: Option<Instant>,
     // Slave link.
     spi_seq: u16,
+    /// Sequence number of the command at the front of the queue (or of the last one acked).
     command_seq: u8,
-    command: SlaveCommand,
-    command_acked: bool,
+    /// Commands for the slave, oldest first; the front one is sent until acknowledged.
+    commands: CommandQueue,
     /// Latest usable slave frame and when (master clock) the slave sampled it.
     slave: Option<(SlaveFrame, Instant)>,
     /// When the previous SPI transaction ended: the slave armed the next frame right then.
@@ -68,8 +110,7 @@ impl Controller {
             last_host_rx: None,
             spi_seq: 0,
             command_seq: 0,
-            command: SlaveCommand::None,
-            command_acked: true,
+            commands: CommandQueue::new(),
             slave: None,
             prev_exchange_end: None,
             last_fresh_slave: None,
@@ -96,12 +137,8 @@ impl Controller {
                 protocol_version: PROTOCOL_VERSION,
                 schema_fingerprint: protocol::schema_fingerprint(),
             }),
-            HostToMaster::SetPose(p) => {
-                self.command_seq = self.command_seq.wrapping_add(1);
-                self.command = SlaveCommand::SetPose(p);
-                self.command_acked = false;
-                None
-            }
+            HostToMaster::SetPose(p) => self.queue_for_slave(SlaveCommand::SetPose(p)),
+            HostToMaster::SetOdometry(a) => self.queue_for_slave(SlaveCommand::SetAlgorithm(a)),
             HostToMaster::FollowTarget(t) => match self.validate(now, &t) {
                 Some(goal) => {
                     self.goal = Some(goal);
@@ -145,6 +182,19 @@ impl Controller {
         })
     }
 
+    /// Queue a command for the slave; refused (and the motors stopped) if the queue is full,
+    /// which only a host flooding commands faster than the slave applies them can cause.
+    fn queue_for_slave(&mut self, c: SlaveCommand) -> Option<MasterToHost> {
+        let was_empty = self.commands.is_empty();
+        if !self.commands.push(c) {
+            return Some(self.reject(RejectReason::Busy));
+        }
+        if was_empty {
+            self.command_seq = self.command_seq.wrapping_add(1);
+        }
+        None
+    }
+
     fn reject(&mut self, reason: RejectReason) -> MasterToHost {
         self.stop_following(status::COMMAND_REJECTED);
         MasterToHost::Rejected(reason)
@@ -162,11 +212,7 @@ impl Controller {
         MasterFrame {
             seq: self.spi_seq,
             command_seq: self.command_seq,
-            command: if self.command_acked {
-                SlaveCommand::None
-            } else {
-                self.command
-            },
+            command: self.commands.front().unwrap_or(SlaveCommand::None),
         }
     }
 
@@ -179,8 +225,9 @@ impl Controller {
         };
         self.counters.spi_ok = self.counters.spi_ok.wrapping_add(1);
         self.counters.slave_rx_rejected = f.rx_rejected as u32;
-        if f.command_ack == self.command_seq {
-            self.command_acked = true;
+        if f.command_ack == self.command_seq && self.commands.pop() && !self.commands.is_empty() {
+            // The next queued command goes out under a new number.
+            self.command_seq = self.command_seq.wrapping_add(1);
         }
         // A frame whose seq did not move means the slave's odometry loop is stuck: the SPI
         // peripheral still answers, but with stale data. Only moving frames count as alive.
@@ -188,8 +235,9 @@ impl Controller {
         if fresh {
             self.last_fresh_slave = Some(now);
         }
-        // Until the slave has applied our last set-pose, its poses are from before it.
-        if self.command_acked {
+        // Until the slave has applied every queued command (a set-pose among them), its poses
+        // may be from before them.
+        if self.commands.is_empty() {
             let sampled = Self::sample_time(armed_at, now, &f);
             self.slave = Some((f, sampled));
         }
@@ -305,6 +353,7 @@ impl Controller {
             duty_permille: self.duty,
             status: self.status | if slave_fault { status::SLAVE_FAULT } else { 0 },
             counters: self.counters,
+            slave_algorithm: self.slave.map_or(Default::default(), |(f, _)| f.algorithm),
         }
     }
 
@@ -480,6 +529,47 @@ mod tests {
         f.armed_us = 3;
         c.on_slave_frame(t(2_004), Ok(f));
         assert_eq!(c.slave.unwrap().1.as_micros(), 2_004_000);
+    }
+
+    #[test]
+    fn queued_commands_go_out_one_by_one_each_until_acknowledged() {
+        use protocol::spi::OdometryAlgorithm;
+        let mut c = ctl();
+        let p = Pose {
+            x_um: 1,
+            y_um: 2,
+            heading: BinaryAngle(3),
+        };
+        c.on_host_message(t(0), HostToMaster::SetPose(p));
+        c.on_host_message(t(0), HostToMaster::SetOdometry(OdometryAlgorithm::Arc));
+        let f = c.next_slave_frame();
+        assert_eq!((f.command_seq, f.command), (1, SlaveCommand::SetPose(p)));
+        // Not acknowledged yet: the same command again.
+        c.on_slave_frame(t(1), Ok(slave_frame(1, 0, 0)));
+        assert_eq!(c.next_slave_frame().command, SlaveCommand::SetPose(p));
+        // Acked: the next one, under the next number.
+        c.on_slave_frame(t(2), Ok(slave_frame(2, 1, 0)));
+        let f = c.next_slave_frame();
+        assert_eq!(
+            (f.command_seq, f.command),
+            (2, SlaveCommand::SetAlgorithm(OdometryAlgorithm::Arc))
+        );
+        assert!(
+            c.estimate(t(2)).is_none(),
+            "poses wait until every command is applied"
+        );
+        c.on_slave_frame(t(3), Ok(slave_frame(3, 2, 0)));
+        let f = c.next_slave_frame();
+        assert_eq!((f.command_seq, f.command), (2, SlaveCommand::None));
+        assert!(c.estimate(t(3)).is_some());
+        // A flood beyond the queue is refused and stops the robot.
+        for _ in 0..4 {
+            assert_eq!(c.on_host_message(t(4), HostToMaster::SetPose(p)), None);
+        }
+        assert_eq!(
+            c.on_host_message(t(4), HostToMaster::SetPose(p)),
+            Some(MasterToHost::Rejected(RejectReason::Busy))
+        );
     }
 
     #[test]

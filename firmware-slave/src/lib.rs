@@ -12,16 +12,17 @@
 //!   what the master sent back (commands such as set-pose, acknowledged by sequence number).
 #![cfg_attr(not(test), no_std)]
 
+mod estimator;
 pub mod ports;
 mod shared;
 
 use embassy_futures::join::join;
 use embassy_time::{Duration, Instant, Ticker};
-use protocol::spi::{self, slave_status, MasterFrame, SlaveCommand, SPI_FRAME_LEN};
-use robot_math::carriage::{CarriageExact, CarriageGeometry};
+use estimator::SlaveOdometry;
+use protocol::spi::{self, slave_status, MasterFrame, SlaveCommand, SlaveFrame, SPI_FRAME_LEN};
+use robot_math::carriage::CarriageGeometry;
 use robot_math::exact::FixedPose;
 use robot_math::sensors::{gray_to_binary, CounterExtender};
-use robot_math::Pose2;
 
 use ports::{AbsoluteEncoderPins, QuadratureCounters, SpiSlave, MEASURING_WHEELS};
 pub use shared::SlaveShared;
@@ -80,9 +81,8 @@ pub async fn odometry_task(
     let mut extenders = counters.read_raw().map(CounterExtender::new);
     // The integer constants are derived once, here, with (soft) floats; every update after
     // this is integer-only.
-    let Some(mut odometry) = CarriageExact::new(
-        &config.geometry,
-        Pose2::default(),
+    let Some(mut odometry) = SlaveOdometry::new(
+        config.geometry,
         [0; MEASURING_WHEELS],
         config.abs_code(abs.read_levels()),
     ) else {
@@ -95,6 +95,8 @@ pub async fn odometry_task(
     let mut ticker = Ticker::every(period);
     let mut next_due = Instant::now() + period;
     let mut seq: u16 = 0;
+    // Sticky until the next successful switch: the host asked for something this build lacks.
+    let mut unsupported = false;
     loop {
         ticker.next().await;
         // Sample first, as close to the tick as possible; everything else can wait.
@@ -121,15 +123,19 @@ pub async fn odometry_task(
             match command {
                 SlaveCommand::SetPose(p) => {
                     let pose = FixedPose::from_micrometres(p.x_um, p.y_um, p.heading.0);
-                    // Counts keep running: the integrator restarts from here, at these counts.
-                    odometry.update(totals, code);
-                    odometry.set_body(pose, code);
+                    odometry.set_pose(pose, totals, code);
+                }
+                SlaveCommand::SetAlgorithm(a) => {
+                    unsupported = !odometry.switch(a, totals, code);
                 }
                 SlaveCommand::None => {}
             }
             shared.acknowledge(command_seq);
         }
         let pose = odometry.update(totals, code);
+        if unsupported {
+            status |= slave_status::ALGORITHM_UNSUPPORTED;
+        }
 
         seq = seq.wrapping_add(1);
         let mut counts = [0i32; spi::ENCODER_SLOTS];
@@ -137,7 +143,22 @@ pub async fn odometry_task(
             // The wire carries the low 32 bits; the master only ever needs differences.
             *slot = total as i32;
         }
-        shared.publish(seq, now.as_micros() as u32, counts, code, pose, status);
+        let (x_um, y_um) = pose.micrometres();
+        let update = SlaveFrame {
+            seq,
+            time_us: now.as_micros() as u32,
+            counts,
+            abs_code: code,
+            pose: protocol::Pose {
+                x_um,
+                y_um,
+                heading: protocol::BinaryAngle(pose.heading_bam()),
+            },
+            status,
+            algorithm: odometry.algorithm(),
+            ..SlaveFrame::default()
+        };
+        shared.publish(&update, pose);
     }
 }
 

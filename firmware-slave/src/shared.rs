@@ -4,7 +4,7 @@ use core::cell::RefCell;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use protocol::spi::{MasterFrame, SlaveCommand, SlaveFrame, ENCODER_SLOTS};
-use protocol::{BinaryAngle, Pose};
+use protocol::Pose;
 use robot_math::exact::FixedPose;
 use robot_math::Pose2;
 
@@ -45,6 +45,7 @@ impl SlaveShared {
                     status: 0,
                     command_ack: 0,
                     rx_rejected: 0,
+                    algorithm: protocol::spi::OdometryAlgorithm::Exact,
                 },
                 pending: None,
                 pose: FixedPose {
@@ -71,28 +72,16 @@ impl SlaveShared {
         self.with(|s| s.pose).to_pose2()
     }
 
-    pub(crate) fn publish(
-        &self,
-        seq: u16,
-        time_us: u32,
-        counts: [i32; ENCODER_SLOTS],
-        abs_code: u16,
-        pose: FixedPose,
-        status: u16,
-    ) {
-        let (x_um, y_um) = pose.micrometres();
-        let wire = Pose {
-            x_um,
-            y_um,
-            heading: BinaryAngle(pose.heading_bam()),
-        };
+    /// Publish an odometry update. `update` carries the odometry fields; the link fields
+    /// (`command_ack`, `rx_rejected`, `armed_us`) stay as this state keeps them.
+    pub(crate) fn publish(&self, update: &SlaveFrame, pose: FixedPose) {
         self.with(|s| {
-            s.frame.seq = seq;
-            s.frame.time_us = time_us;
-            s.frame.counts = counts;
-            s.frame.abs_code = abs_code;
-            s.frame.pose = wire;
-            s.frame.status = status;
+            s.frame = SlaveFrame {
+                command_ack: s.frame.command_ack,
+                rx_rejected: s.frame.rx_rejected,
+                armed_us: s.frame.armed_us,
+                ..*update
+            };
             s.pose = pose;
         });
     }

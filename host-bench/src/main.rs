@@ -32,6 +32,9 @@ enum Command {
         /// Seed for everything random in the run (e.g. the encoders' phase at power-on).
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Odometry algorithm the slave runs (sent to it over the protocol).
+        #[arg(long, default_value = "exact", value_parser = ["exact", "arc", "lut", "timing"])]
+        algorithm: String,
         /// Print the summary as one JSON object instead of text.
         #[arg(long)]
         json: bool,
@@ -88,6 +91,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             scenario,
             duration,
             seed,
+            algorithm,
             json,
             sweep,
             out,
@@ -101,6 +105,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 opts.duration = d;
             }
             opts.seed = seed;
+            opts.algorithm = match algorithm.as_str() {
+                "arc" => protocol::spi::OdometryAlgorithm::Arc,
+                "lut" => protocol::spi::OdometryAlgorithm::Lut,
+                "timing" => protocol::spi::OdometryAlgorithm::Timing,
+                _ => protocol::spi::OdometryAlgorithm::Exact,
+            };
             opts.faults.slave_off_at = fault_slave_off_at;
             opts.faults.host_silent_after = fault_host_silent_after;
             if let Some(n) = sweep {

@@ -16,7 +16,7 @@ use crate::emulator::{LogRow, Run, Summary};
 pub fn summary_text(s: &Summary) -> String {
     let ok = |b: bool| if b { "ok" } else { "MISMATCH" };
     format!(
-        "scenario        {scenario} (seed {seed})\n\
+        "scenario        {scenario} (seed {seed}), slave odometry `{algorithm}`\n\
          simulated       {sim:.3} s in {wall:.3} s wall ({speed:.0}x real time)\n\
          path length     {path:.3} m\n\
          slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
@@ -24,6 +24,7 @@ pub fn summary_text(s: &Summary) -> String {
          SPI frames      {spi} exchanged, {spir} rejected\n\
          serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",
         scenario = s.scenario,
+        algorithm = s.algorithm,
         seed = s.seed,
         sim = s.sim_seconds,
         wall = s.wall_seconds,

@@ -30,6 +30,8 @@ pub enum HostToMaster {
     FollowTarget(MovingTarget),
     /// Stop the motors and forget the target.
     Stop,
+    /// Which odometry algorithm the slave runs (forwarded to it; `Exact` at boot).
+    SetOdometry(crate::spi::OdometryAlgorithm),
     /// "Still here". The master stops the motors when the host is silent for too long.
     Heartbeat,
 }
@@ -68,6 +70,8 @@ pub enum RejectReason {
     ProtocolVersion { master: u16, host: u16 },
     /// A speed of zero or above the robot's limit, or a target out of range.
     InvalidTarget,
+    /// Commands for the slave arrive faster than it applies them.
+    Busy,
 }
 
 /// The master's periodic report.
@@ -89,6 +93,8 @@ pub struct Telemetry {
     /// [`status`] flags.
     pub status: u16,
     pub counters: LinkCounters,
+    /// The algorithm the slave reports running.
+    pub slave_algorithm: crate::spi::OdometryAlgorithm,
 }
 
 /// Frame counters of both links as the master sees them (all wrap at `u32::MAX`).

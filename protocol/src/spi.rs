@@ -46,6 +46,26 @@ pub struct SlaveFrame {
     pub command_ack: u8,
     /// Master frames the slave dropped for a bad CRC or decode (wrapping).
     pub rx_rejected: u16,
+    /// The odometry algorithm producing `pose`.
+    pub algorithm: OdometryAlgorithm,
+}
+
+/// The odometry methods (SPEC §3). The slave runs `Exact` unless told otherwise; a slave
+/// build that cannot run a method (e.g. `Timing` needs tick time stamps, which hardware
+/// quadrature counting does not give) keeps its current one and sets
+/// [`slave_status::ALGORITHM_UNSUPPORTED`].
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum OdometryAlgorithm {
+    /// Ours: exact SE(2) integration in fixed point from cumulative counts.
+    #[default]
+    Exact,
+    /// Seed 004's arc algorithm.
+    Arc,
+    /// Seed 001's integer table method.
+    Lut,
+    /// Seed 000's tick-timing method.
+    Timing,
 }
 
 /// Bits of [`SlaveFrame::status`].
@@ -56,6 +76,8 @@ pub mod slave_status {
     pub const OVERRUN: u16 = 1 << 1;
     /// A quadrature counter moved more than half its range between two samples.
     pub const COUNTER_JUMP: u16 = 1 << 2;
+    /// The last algorithm the master asked for is not available in this slave build.
+    pub const ALGORITHM_UNSUPPORTED: u16 = 1 << 3;
 }
 
 /// What the master sends on every poll.
@@ -77,6 +99,8 @@ pub enum SlaveCommand {
     None,
     /// The body is at this pose now: restart odometry from here.
     SetPose(Pose),
+    /// Switch the odometry algorithm, continuing from the current pose.
+    SetAlgorithm(OdometryAlgorithm),
 }
 
 const _: () = assert!(SlaveFrame::POSTCARD_MAX_SIZE <= SPI_PAYLOAD_LEN);

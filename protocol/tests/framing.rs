@@ -2,7 +2,9 @@
 
 use proptest::prelude::*;
 use protocol::serial::{self, FrameDecoder, FrameError, HostToMaster, MovingTarget};
-use protocol::spi::{self, MasterFrame, SlaveCommand, SlaveFrame, SpiFrameError};
+use protocol::spi::{
+    self, MasterFrame, OdometryAlgorithm, SlaveCommand, SlaveFrame, SpiFrameError,
+};
 use protocol::{BinaryAngle, Point, Pose};
 
 fn arb_pose() -> impl Strategy<Value = Pose> {
@@ -44,12 +46,19 @@ fn arb_slave_frame() -> impl Strategy<Value = SlaveFrame> {
         any::<(u16, u32, u32, [i32; 3], u16)>(),
         arb_pose(),
         any::<(u16, u8, u16)>(),
+        prop_oneof![
+            Just(OdometryAlgorithm::Exact),
+            Just(OdometryAlgorithm::Arc),
+            Just(OdometryAlgorithm::Lut),
+            Just(OdometryAlgorithm::Timing)
+        ],
     )
         .prop_map(
             |(
                 (seq, time_us, armed_us, counts, abs_code),
                 pose,
                 (status, command_ack, rx_rejected),
+                algorithm,
             )| {
                 SlaveFrame {
                     seq,
@@ -61,6 +70,7 @@ fn arb_slave_frame() -> impl Strategy<Value = SlaveFrame> {
                     status,
                     command_ack,
                     rx_rejected,
+                    algorithm,
                 }
             },
         )

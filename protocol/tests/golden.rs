@@ -3,7 +3,9 @@
 //! build: bump `PROTOCOL_VERSION` and update the bytes deliberately.
 
 use protocol::serial::{self, HostToMaster, MasterToHost, MovingTarget, Telemetry};
-use protocol::spi::{self, MasterFrame, SlaveCommand, SlaveFrame, SPI_FRAME_LEN};
+use protocol::spi::{
+    self, MasterFrame, OdometryAlgorithm, SlaveCommand, SlaveFrame, SPI_FRAME_LEN,
+};
 use protocol::{BinaryAngle, Point, Pose};
 
 fn hex(bytes: &[u8]) -> String {
@@ -59,6 +61,7 @@ fn telemetry_frame_bytes() {
         duty_permille: [1, -2, 3],
         status: 0b101,
         counters: Default::default(),
+        slave_algorithm: OdometryAlgorithm::Arc,
     });
     assert_eq!(serial_hex(&msg), GOLDEN_TELEMETRY);
 }
@@ -79,6 +82,7 @@ fn spi_frames_bytes() {
         status: 1,
         command_ack: 2,
         rx_rejected: 0,
+        algorithm: OdometryAlgorithm::Exact,
     };
     let master = MasterFrame {
         seq: 9,
@@ -104,7 +108,7 @@ fn fingerprint_is_pinned() {
 const GOLDEN_HELLO: &str = "0106016922de3600";
 const GOLDEN_FOLLOW: &str = "020213809bee02c096b102809bee02b0ae15c0cf24050aeaac0a00";
 const GOLDEN_TELEMETRY: &str =
-    "0f01c0843dd8fc3c1744808080800401010bc8018f03d8040203060501010101059437465100";
+    "0f01c0843dd8fc3c1744808080800401010bc8018f03d8040203060501010101060171ce365200";
 const GOLDEN_SLAVE_FRAME: &str = "07c0c407e0c807d00fcf0f00400201ffffffff0f0102000000000000000000000000000000000000000000000000000000000000000000000000000000002a79";
 const GOLDEN_MASTER_FRAME: &str = "09030100000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000d1b";
-const GOLDEN_FINGERPRINT: &str = "97352674";
+const GOLDEN_FINGERPRINT: &str = "603c973e";

@@ -35,6 +35,7 @@ pub async fn session(
     rx: impl Read,
     mut tx: impl Write,
     scenario: Scenario,
+    algorithm: protocol::spi::OdometryAlgorithm,
     log: Rc<RefCell<HostLog>>,
 ) {
     let reader = read_loop(rx, log.clone());
@@ -66,7 +67,8 @@ pub async fn session(
             &HostToMaster::SetPose(Pose::from_si(x, y, th)),
         )
         .await;
-        // Give the master a few polls to get the set-pose to the slave and acknowledged.
+        send(&mut tx, &log, &HostToMaster::SetOdometry(algorithm)).await;
+        // Give the master a few polls to get both commands to the slave and acknowledged.
         Timer::after_millis(20).await;
         let follow = HostToMaster::FollowTarget(MovingTarget {
             from: Point::from_metres(scenario.target_from.0, scenario.target_from.1),

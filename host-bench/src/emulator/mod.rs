@@ -98,6 +98,8 @@ pub struct Options {
     pub slave: SlaveConfig,
     pub motor_tau: f64,
     pub faults: Faults,
+    /// The odometry algorithm the host asks the slave to run.
+    pub algorithm: protocol::spi::OdometryAlgorithm,
 }
 
 /// Faults to inject, each at a virtual time in seconds (None: never).
@@ -122,6 +124,7 @@ impl Options {
             slave: SlaveConfig::DEFAULT,
             motor_tau: 0.05,
             faults: Faults::default(),
+            algorithm: protocol::spi::OdometryAlgorithm::Exact,
         }
     }
 }
@@ -154,6 +157,8 @@ pub struct LogRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
     pub scenario: String,
+    /// The slave's odometry algorithm (as the slave reports it).
+    pub algorithm: String,
     pub seed: u64,
     pub sim_seconds: f64,
     pub wall_seconds: f64,
@@ -259,6 +264,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
                 byte_time,
             },
             scenario.clone(),
+            opts.algorithm,
             host_log.clone(),
         ),
     ));
@@ -329,8 +335,18 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let distance_to_goal =
         (end_pos.x - scenario.target_to.0).hypot(end_pos.y - scenario.target_to.1);
     let status = master_shared.with(|c| c.status()).unwrap_or(0);
+    let slave_frame = slave_shared.frame();
+    if slave_frame.status & protocol::spi::slave_status::ALGORITHM_UNSUPPORTED != 0 {
+        bail!(
+            "the slave cannot run {:?}: this slave build counts encoders in hardware and has no tick \
+             time stamps or table method; it kept running {:?}",
+            opts.algorithm,
+            slave_frame.algorithm
+        );
+    }
     let summary = Summary {
         scenario: scenario.name.clone(),
+        algorithm: format!("{:?}", slave_frame.algorithm).to_lowercase(),
         seed: opts.seed,
         sim_seconds: sim.now().as_micros() as f64 / 1e6,
         wall_seconds: wall.elapsed().as_secs_f64(),
