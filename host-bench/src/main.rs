@@ -169,14 +169,23 @@ fn run_replay(
     } else {
         vec![algorithm.as_str()]
     };
-    let scores = names
-        .iter()
-        .map(|name| replay::replay(&robot, &stream, name, mode))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    // A named algorithm must run; with `all`, the ones that cannot apply to this robot or
+    // mode (e.g. `timing` on sampled counts) are skipped with the reason.
+    let mut scores = Vec::new();
+    let mut skipped = Vec::new();
+    for name in &names {
+        match replay::replay(&robot, &stream, name, mode) {
+            Ok(s) => scores.push(s),
+            Err(e) if algorithm == "all" => {
+                skipped.push(serde_json::json!({"name": name, "reason": format!("{e:#}")}))
+            }
+            Err(e) => return Err(e),
+        }
+    }
     if json {
         println!(
             "{}",
-            serde_json::json!({ "mode": mode.to_string(), "algorithms": scores })
+            serde_json::json!({ "mode": mode.to_string(), "algorithms": scores, "skipped": skipped })
         );
     } else {
         println!(
@@ -193,6 +202,13 @@ fn run_replay(
                 s.max_error_m * 1e3,
                 s.final_heading_error_rad.to_degrees(),
                 s.path_length_m
+            );
+        }
+        for k in &skipped {
+            println!(
+                "{:<8} skipped: {}",
+                k["name"].as_str().unwrap_or(""),
+                k["reason"].as_str().unwrap_or("")
             );
         }
     }

@@ -1,7 +1,8 @@
 //! `host-bench replay`: run odometry estimators over a recorded or generated tick stream and
 //! score them against the stream's ground-truth rows.
 //!
-//! `arc` (seed 004's baseline) works on whole counts at every update. `exact` runs in either
+//! The baselines: `arc` (seed 004) works on whole counts at every update; `lut` (seed 001)
+//! tick by tick; `timing` (seed 000) needs every tick's time stamp. `exact` runs in either
 //! sensor mode of the slave:
 //! * [`Mode::Timestamps`] (edge interrupts / input capture): every tick instant is an update,
 //!   at which the wheels that did not tick are interpolated from their own last tick interval
@@ -16,8 +17,10 @@
 use anyhow::{bail, Context, Result};
 use robot_math::arc::ArcOdometry;
 use robot_math::exact::{ExactOdometry, ExactParams, FixedPose, MAX_ENCODERS};
+use robot_math::lut::LutOdometry;
 use robot_math::se2::wrap_angle;
 use robot_math::ticks::TickTracker;
+use robot_math::timing::TimingOdometry;
 use robot_math::wheelset::WheelSolver;
 use robot_math::Pose2;
 use serde::Serialize;
@@ -26,7 +29,7 @@ use crate::robot::Robot;
 use crate::tickstream::{Event, TickStream};
 
 /// The estimators `replay` knows, in report order.
-pub const ALGORITHMS: &[&str] = &["arc", "exact"];
+pub const ALGORITHMS: &[&str] = &["arc", "lut", "timing", "exact"];
 
 /// How the estimator sees the encoders.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -121,6 +124,85 @@ impl Estimator for Arc {
     }
 }
 
+/// Seed 001's table method works tick by tick (that is its point). With time stamps it sees
+/// every tick as it happens; reading sampled counts, it applies each sample's count changes as
+/// ticks, the two wheels interleaved.
+struct Lut {
+    odo: LutOdometry,
+    per_tick: bool,
+    applied: [i64; 2],
+}
+
+impl Estimator for Lut {
+    fn tick(&mut self, _t_ns: u64, encoder: usize, step: i8) {
+        if self.per_tick {
+            self.odo.tick(encoder as u8, step);
+            self.applied[encoder] += step as i64;
+        }
+    }
+
+    fn update(
+        &mut self,
+        _t_ns: u64,
+        wheels: &[TickTracker; MAX_ENCODERS],
+        _interpolate: bool,
+    ) -> Pose2 {
+        if !self.per_tick {
+            let mut todo = [
+                wheels[0].count() - self.applied[0],
+                wheels[1].count() - self.applied[1],
+            ];
+            while todo != [0, 0] {
+                for (w, left) in todo.iter_mut().enumerate() {
+                    if *left != 0 {
+                        let step = left.signum() as i8;
+                        self.odo.tick(w as u8, step);
+                        *left -= step as i64;
+                        self.applied[w] += step as i64;
+                    }
+                }
+            }
+        }
+        self.odo.pose()
+    }
+}
+
+/// Seed 000's timing method: every tick with its time.
+struct Timing {
+    odo: TimingOdometry,
+}
+
+impl Estimator for Timing {
+    fn tick(&mut self, t_ns: u64, encoder: usize, step: i8) {
+        self.odo.tick(t_ns, encoder, step);
+    }
+
+    fn update(
+        &mut self,
+        t_ns: u64,
+        _wheels: &[TickTracker; MAX_ENCODERS],
+        _interpolate: bool,
+    ) -> Pose2 {
+        self.odo.update(t_ns)
+    }
+}
+
+/// Whether the robot is a differential drive as seed 001's method assumes: two encoders on
+/// one axle through the reference point, left (+y) then right (-y), both rolling forward,
+/// with the same travel per count. Returns (travel per count, track).
+fn seed001_layout(robot: &Robot) -> Option<(f64, f64)> {
+    let [l, r] = robot.encoders.as_slice() else {
+        return None;
+    };
+    let (wl, wr) = (l.wheel, r.wheel);
+    let forward = |w: robot_math::wheel::Wheel| {
+        (w.ux - 1.0).abs() < 1e-9 && w.uy.abs() < 1e-9 && w.x.abs() < 1e-9
+    };
+    let same = (l.metres_per_count - r.metres_per_count).abs() <= 1e-12 * l.metres_per_count;
+    (forward(wl) && forward(wr) && same && wl.y > 0.0 && (wl.y + wr.y).abs() < 1e-9)
+        .then_some((l.metres_per_count, wl.y - wr.y))
+}
+
 /// Run `algorithm` over `stream` for `robot`, seeing the encoders as `mode` says.
 pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -> Result<Score> {
     if let Mode::Counts { rate_hz } = mode {
@@ -179,6 +261,29 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
             odo: ArcOdometry::new(solver, &k, start, &vec![0.0; n]),
             n,
         }),
+        "lut" => {
+            let Some((step, track)) = seed001_layout(robot) else {
+                bail!(
+                    "robot {}: `lut` (seed 001) needs a differential drive: two encoders on one axle \
+                     through the reference point, left then right, rolling forward, same travel per count",
+                    robot.name
+                );
+            };
+            Box::new(Lut {
+                odo: LutOdometry::new(step, track, start),
+                per_tick: mode == Mode::Timestamps,
+                applied: [0; 2],
+            })
+        }
+        "timing" => {
+            if mode != Mode::Timestamps {
+                bail!("`timing` (seed 000) needs every tick's time stamp; it cannot run on sampled counts");
+            }
+            Box::new(Timing {
+                odo: TimingOdometry::from_wheels(&robot.encoder_wheels(), &k, start)
+                    .map_err(|e| anyhow::anyhow!("robot {}: {e:?}", robot.name))?,
+            })
+        }
         other => bail!(
             "unknown algorithm {other:?}; available: {}, or all",
             ALGORITHMS.join(", ")
