@@ -5,9 +5,21 @@
 //! tick the wheel is exactly on that edge; between ticks it is somewhere in the next step.
 //! Integrating only at tick instants with whole counts lets the wheels that have not ticked
 //! yet lag by up to a step, and that lag turns into heading error. Interpolating each wheel
-//! to the update instant from its last tick interval (seed 000's speed estimate, Δ / interval)
-//! removes most of it; the estimate is clamped so it never passes the next edge (no tick has
-//! said so) and is corrected by the next real tick, so its errors do not accumulate.
+//! to the update instant removes most of it. Seed 000 estimates speed as Δ / interval and
+//! suggests higher-order fits as the improvement; a constant-speed guess lags whenever the
+//! wheel accelerates or brakes (most of all near standstill, where intervals are long), so
+//! this fits a constant *acceleration* to the last two intervals T1, T2 (same direction).
+//! In units of steps and of x = τ / T2 (τ since the last tick), with ρ = T2 / T1:
+//!
+//! ```text
+//! s(x) = x + c·(x + x²),   c = (1 − ρ)·ρ / (1 + ρ)
+//! ```
+//!
+//! (the mean speeds 1/T1, 1/T2 belong to the interval midpoints; the acceleration between
+//! them, extrapolated from the last edge). Constant speed gives ρ = 1, c = 0, s = x. When
+//! braking (c < 0) the fit stops at x* = −(1 + c) / (2c) and holds there. The estimate is
+//! clamped so it never passes the next edge (no tick has said so) and is corrected by the
+//! next real tick, so its errors do not accumulate.
 //!
 //! Integer-only: times in nanoseconds, positions in Q16 counts.
 
@@ -21,6 +33,8 @@ pub struct TickTracker {
     last_t: Option<u64>,
     /// Interval between the last two ticks, when they went the same way.
     interval: Option<u64>,
+    /// The interval before that, when it went the same way too.
+    prev_interval: Option<u64>,
     dir: i8,
 }
 
@@ -34,6 +48,7 @@ impl TickTracker {
             edge: 0,
             last_t: None,
             interval: None,
+            prev_interval: None,
             dir: 0,
         }
     }
@@ -47,8 +62,10 @@ impl TickTracker {
         // Forward to count m crosses edge m; backward to count m - 1 crosses edge m too.
         self.edge = if step > 0 { self.count + 1 } else { self.count };
         self.count += step as i64;
+        let same_way = self.dir == step;
+        self.prev_interval = if same_way { self.interval } else { None };
         self.interval = match self.last_t {
-            Some(prev) if self.dir == step && t_ns > prev => Some(t_ns - prev),
+            Some(prev) if same_way && t_ns > prev => Some(t_ns - prev),
             _ => None,
         };
         self.last_t = Some(t_ns);
@@ -71,13 +88,30 @@ impl TickTracker {
             };
         };
         let since = t_ns.saturating_sub(last);
-        // (since / interval) in Q16, clamped below one step. `since < interval < 2^47` keeps
-        // the shift in range (an interval of 39 hours is a stopped wheel anyway).
-        let frac = if since >= interval || interval >= 1 << 47 {
-            MAX_FRACTION
-        } else {
-            (((since << 16) / interval) as i64).min(MAX_FRACTION)
+        if interval >= 1 << 40 {
+            // Over 18 minutes between two edges: a stopped wheel.
+            return self.edge << 16;
+        }
+        // x = τ / T2 in Q16, capped at 8 steps' worth of time (well past any clamp below).
+        let x = ((since.min(interval * 8) << 16) / interval) as i64;
+        let frac = match self.prev_interval {
+            None => x, // one interval only: constant speed
+            Some(t1) => {
+                // ρ = T2 / T1 in Q16, limited to [1/16, 16] so one odd interval cannot
+                // throw the fit far.
+                let rho = (((interval as u128) << 16) / t1 as u128).clamp(1 << 12, 1 << 20) as i64;
+                // c = (1 − ρ)·ρ / (1 + ρ), Q16.
+                let c = ((1 << 16) - rho) * rho / ((1 << 16) + rho);
+                // Braking: the fitted speed reaches zero at x* = −(1 + c) / (2c); hold there.
+                let x = if c < 0 {
+                    x.min(((1 << 16) + c) * (1 << 16) / (-2 * c))
+                } else {
+                    x
+                };
+                x + (c * (x + ((x * x) >> 16)) >> 16)
+            }
         };
+        let frac = frac.clamp(0, MAX_FRACTION);
         (self.edge << 16) + self.dir as i64 * frac
     }
 }
@@ -114,6 +148,48 @@ mod tests {
         w.tick(3_000, -1); // over edge 0: count -1, position 0
         assert_eq!(w.position_q16(3_000), 0);
         assert_eq!(w.position_q16(3_500), -(1 << 15));
+    }
+
+    #[test]
+    fn constant_acceleration_is_followed_between_ticks() {
+        // s(t) = t² (steps, t in ms): edges at t = √k ms. Between edges the fit must land on
+        // the parabola far closer than constant-speed interpolation does.
+        let edge_at = |k: f64| (k.sqrt() * 1e6).round() as u64;
+        let mut w = TickTracker::new();
+        for k in 1..=9 {
+            w.tick(edge_at(k as f64), 1);
+        }
+        let t = edge_at(9.5); // halfway (in distance) to edge 10
+        let truth = 9.5 * 65536.0;
+        let fitted = w.position_q16(t) as f64;
+        // Constant speed from the last interval alone would say:
+        let t8 = edge_at(8.0) as f64;
+        let t9 = edge_at(9.0) as f64;
+        let constant = (9.0 + (t as f64 - t9) / (t9 - t8)) * 65536.0;
+        assert!(
+            (fitted - truth).abs() < 0.01 * 65536.0,
+            "fit {} vs {}",
+            fitted / 65536.0,
+            9.5
+        );
+        assert!((constant - truth).abs() > 3.0 * (fitted - truth).abs());
+    }
+
+    #[test]
+    fn braking_holds_at_the_predicted_stop() {
+        // Intervals doubling: braking hard. Long after the last tick the estimate must hold
+        // below the next edge, not run up to it.
+        let mut w = TickTracker::new();
+        for t in [1_000u64, 2_000, 4_000, 8_000] {
+            w.tick(t, 1);
+        }
+        let held = w.position_q16(1_000_000);
+        assert!(
+            held > 4 << 16 && held < (4 << 16) + MAX_FRACTION,
+            "{}",
+            held as f64 / 65536.0
+        );
+        assert_eq!(held, w.position_q16(9_000_000), "holds once stopped");
     }
 
     #[test]
