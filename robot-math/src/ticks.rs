@@ -99,7 +99,8 @@ impl TickTracker {
             Some(t1) => {
                 // ρ = T2 / T1 in Q16, limited to [1/16, 16] so one odd interval cannot
                 // throw the fit far.
-                let rho = (((interval as u128) << 16) / t1 as u128).clamp(1 << 12, 1 << 20) as i64;
+                // `interval < 2^40` (checked above), so the shift fits 64 bits.
+                let rho = ((interval << 16) / t1.max(1)).clamp(1 << 12, 1 << 20) as i64;
                 // c = (1 − ρ)·ρ / (1 + ρ), Q16.
                 let c = ((1 << 16) - rho) * rho / ((1 << 16) + rho);
                 // Braking: the fitted speed reaches zero at x* = −(1 + c) / (2c); hold there.
