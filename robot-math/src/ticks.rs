@@ -109,7 +109,7 @@ impl TickTracker {
                 } else {
                     x
                 };
-                x + (c * (x + ((x * x) >> 16)) >> 16)
+                x + ((c * (x + ((x * x) >> 16))) >> 16)
             }
         };
         let frac = frac.clamp(0, MAX_FRACTION);
