@@ -52,6 +52,39 @@ enum Command {
         #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
         fault_host_silent_after: Option<f64>,
     },
+    /// Every seed case, every sensor mode, all four odometry methods side by side, with the
+    /// papers' reported figures.
+    Accuracy {
+        /// Print {"cases":[{case, robot, mode, path_length_m, algorithms:[...]}...]}.
+        #[arg(long)]
+        json: bool,
+        /// Write an SVG per case and mode (true path and each method's path; error against
+        /// distance) and each method's track (truth, estimate, error per truth row) as CSV.
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
+    /// Write the exact tick stream a robot's ideal encoders produce along a trajectory
+    /// (docs/tick-stream.md).
+    Generate {
+        /// List the trajectories and exit.
+        #[arg(long)]
+        list: bool,
+        /// Robot description (docs/robot-format.md).
+        #[arg(long, value_name = "FILE", required_unless_present = "list")]
+        robot: Option<PathBuf>,
+        /// Trajectory name (see --list).
+        #[arg(long, required_unless_present = "list")]
+        trajectory: Option<String>,
+        /// Output file (.csv, or .csv.gz to compress).
+        #[arg(long, value_name = "FILE", required_unless_present = "list")]
+        out: Option<PathBuf>,
+        /// Ground-truth rows per second.
+        #[arg(long, default_value_t = 100.0)]
+        truth_rate: f64,
+        /// Absolute-encoder readings per second (robots that have one).
+        #[arg(long, default_value_t = 1000.0)]
+        abs_rate: f64,
+    },
     /// Run odometry estimators over a tick stream (docs/tick-stream.md) and score them
     /// against its truth rows.
     Replay {
@@ -64,6 +97,10 @@ enum Command {
         /// Estimator to run, or `all`.
         #[arg(long, default_value = "all")]
         algorithm: String,
+        /// Write each algorithm's track (truth, estimate, error at every truth row) as
+        /// DIR/<algorithm>.csv.
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
         /// Read the encoders as hardware counters sampled at this rate (Hz) instead of as
         /// time-stamped ticks.
         #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
@@ -132,14 +169,155 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Accuracy { json, out } => run_accuracy(json, out),
+        Command::Generate {
+            list,
+            robot,
+            trajectory,
+            out,
+            truth_rate,
+            abs_rate,
+        } => run_generate(list, robot, trajectory, out, truth_rate, abs_rate),
         Command::Replay {
             robot,
             ticks,
             algorithm,
+            out,
             counts_rate,
             json,
-        } => run_replay(robot, ticks, algorithm, counts_rate, json),
+        } => run_replay(robot, ticks, algorithm, counts_rate, out, json),
     }
+}
+
+fn run_accuracy(json: bool, out: Option<PathBuf>) -> anyhow::Result<()> {
+    use host_bench::accuracy;
+    let total = (accuracy::cases().len() * accuracy::modes().len()) as u64;
+    // indicatif draws only when stderr is a terminal: CI logs stay clean.
+    let bar = indicatif::ProgressBar::new(total).with_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let results = accuracy::run(|label| {
+        bar.set_message(label.to_string());
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    if let Some(dir) = &out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        for r in &results {
+            let mode = r.mode.replace('@', "-");
+            for s in &r.algorithms {
+                s.write_track(&dir.join(format!("{}-{}-{mode}-{}.csv", r.case, r.robot, s.name)))?;
+            }
+            let title = format!("{} on {} ({}): paths and error", r.case, r.robot, r.mode);
+            host_bench::report::write_case_svg(
+                &dir.join(format!("{}-{}-{mode}.svg", r.case, r.robot)),
+                &title,
+                &r.algorithms,
+            )?;
+        }
+    }
+    if json {
+        println!("{}", serde_json::json!({ "cases": results }));
+    } else {
+        print!("{}", accuracy::table(&results));
+    }
+    Ok(())
+}
+
+fn run_generate(
+    list: bool,
+    robot: Option<PathBuf>,
+    trajectory: Option<String>,
+    out: Option<PathBuf>,
+    truth_rate_hz: f64,
+    abs_rate_hz: f64,
+) -> anyhow::Result<()> {
+    use host_bench::{generate, robot::Robot, tickstream, trajectory as traj};
+    if list {
+        for t in traj::catalogue() {
+            let drive = match t.drive {
+                traj::Drive::Differential => "any robot",
+                traj::Drive::Holonomic => "omni robots",
+            };
+            println!(
+                "{:<24} {:<10} {:<11} {}",
+                t.name, t.paper, drive, t.description
+            );
+        }
+        return Ok(());
+    }
+    // clap guarantees these without --list.
+    let (Some(robot_path), Some(name), Some(out)) = (robot, trajectory, out) else {
+        anyhow::bail!("--robot, --trajectory and --out are required");
+    };
+    for (flag, v) in [("--truth-rate", truth_rate_hz), ("--abs-rate", abs_rate_hz)] {
+        anyhow::ensure!(
+            v.is_finite() && v > 0.0,
+            "{flag} must be a positive number of Hz, got {v}"
+        );
+    }
+    let robot = Robot::load(&robot_path)?;
+    let named = traj::named(&name).ok_or_else(|| {
+        anyhow::anyhow!("unknown trajectory {name:?}; `host-bench generate --list` names them")
+    })?;
+    generate::check_drive(&robot, named.drive)?;
+    let t = traj::build(&name)
+        .ok_or_else(|| anyhow::anyhow!("trajectory {name:?} could not be built"))?;
+    // The stream names its robot relative to where the stream is written.
+    let header = relative_path(
+        &robot_path,
+        out.parent().unwrap_or(std::path::Path::new(".")),
+    );
+    let stream = generate::generate(
+        &robot,
+        header.as_deref(),
+        t.as_ref(),
+        &generate::GenerateOptions {
+            truth_rate_hz,
+            abs_rate_hz,
+        },
+    )?;
+    tickstream::write(&out, &stream)?;
+    let ticks = stream
+        .events
+        .iter()
+        .filter(|e| matches!(e, tickstream::Event::Tick { .. }))
+        .count();
+    eprintln!(
+        "wrote {} ({} events, {} ticks, {:.3} s of {})",
+        out.display(),
+        stream.events.len(),
+        ticks,
+        t.duration(),
+        name
+    );
+    Ok(())
+}
+
+/// `target` relative to the directory `from`, when both resolve (for the `# robot:` line).
+fn relative_path(target: &std::path::Path, from: &std::path::Path) -> Option<String> {
+    let target = std::fs::canonicalize(target).ok()?;
+    let from = std::fs::canonicalize(if from.as_os_str().is_empty() {
+        std::path::Path::new(".")
+    } else {
+        from
+    })
+    .ok()?;
+    let common = target
+        .components()
+        .zip(from.components())
+        .take_while(|(a, b)| a == b)
+        .count();
+    let mut rel = std::path::PathBuf::new();
+    for _ in from.components().skip(common) {
+        rel.push("..");
+    }
+    for c in target.components().skip(common) {
+        rel.push(c);
+    }
+    rel.to_str().map(str::to_owned)
 }
 
 fn run_replay(
@@ -147,6 +325,7 @@ fn run_replay(
     ticks: PathBuf,
     algorithm: String,
     counts_rate: Option<f64>,
+    out: Option<PathBuf>,
     json: bool,
 ) -> anyhow::Result<()> {
     use host_bench::{replay, robot::Robot, tickstream};
@@ -180,6 +359,13 @@ fn run_replay(
                 skipped.push(serde_json::json!({"name": name, "reason": format!("{e:#}")}))
             }
             Err(e) => return Err(e),
+        }
+    }
+    if let Some(dir) = &out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        for s in &scores {
+            s.write_track(&dir.join(format!("{}.csv", s.name)))?;
         }
     }
     if json {

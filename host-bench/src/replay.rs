@@ -59,9 +59,51 @@ pub struct Score {
     pub path_length_m: f64,
     /// Truth rows scored.
     pub truth_rows: usize,
-    /// The estimate at every truth row: (t s, pose).
+    /// Every truth row scored: (t s, estimate, truth).
     #[serde(skip)]
-    pub track: Vec<(f64, Pose2)>,
+    pub track: Vec<(f64, Pose2, Pose2)>,
+}
+
+impl Score {
+    /// Write the track as CSV (t, truth, estimate, position error), atomically.
+    pub fn write_track(&self, path: &std::path::Path) -> Result<()> {
+        let tmp = path.with_extension("csv.partial");
+        let result = (|| -> Result<()> {
+            let mut w = csv::Writer::from_path(&tmp)?;
+            w.write_record([
+                "t_s",
+                "true_x_m",
+                "true_y_m",
+                "true_theta_rad",
+                "x_m",
+                "y_m",
+                "theta_rad",
+                "error_m",
+            ])?;
+            for (t, e, tr) in &self.track {
+                w.write_record(
+                    [
+                        t,
+                        &tr.x,
+                        &tr.y,
+                        &tr.theta,
+                        &e.x,
+                        &e.y,
+                        &e.theta,
+                        &e.distance_to(*tr),
+                    ]
+                    .map(|v| v.to_string()),
+                )?;
+            }
+            w.flush()?;
+            std::fs::rename(&tmp, path)?;
+            Ok(())
+        })();
+        if result.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        result.with_context(|| format!("writing {}", path.display()))
+    }
 }
 
 /// What the replay driver tells an estimator. The trackers hold every tick up to `t_ns`.
@@ -187,6 +229,20 @@ impl Estimator for Timing {
     }
 }
 
+/// Origin of seed 001's unsigned coordinate square (in its 10^-8 m units) that keeps the
+/// stream's truth rows, with a 1 m margin, inside the representable range.
+fn lut_origin(stream: &TickStream) -> (u32, u32) {
+    let (mut min_x, mut min_y) = (0.0f64, 0.0f64);
+    for e in &stream.events {
+        if let Event::Truth { x_m, y_m, .. } = *e {
+            min_x = min_x.min(x_m);
+            min_y = min_y.min(y_m);
+        }
+    }
+    let lsb = |m: f64| ((1.0 - m) * 1e8).clamp(0.0, u32::MAX as f64) as u32;
+    (lsb(min_x), lsb(min_y))
+}
+
 /// Whether the robot is a differential drive as seed 001's method assumes: two encoders on
 /// one axle through the reference point, left (+y) then right (-y), both rolling forward,
 /// with the same travel per count. Returns (travel per count, track).
@@ -269,8 +325,11 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
                     robot.name
                 );
             };
+            // Seed 001 keeps coordinates unsigned (about 42.9 m of range at 10^-8 m): like the
+            // paper, put the field origin so the whole run stays positive, 1 m inside the square.
+            let origin = lut_origin(stream);
             Box::new(Lut {
-                odo: LutOdometry::new(step, track, start),
+                odo: LutOdometry::with_origin_offset(step, track, start, origin),
                 per_tick: mode == Mode::Timestamps,
                 applied: [0; 2],
             })
@@ -379,7 +438,7 @@ struct Scorer {
     path: f64,
     max: f64,
     last: Option<(Pose2, Pose2)>,
-    track: Vec<(f64, Pose2)>,
+    track: Vec<(f64, Pose2, Pose2)>,
 }
 
 impl Scorer {
@@ -390,7 +449,7 @@ impl Scorer {
         self.last_truth = Some(truth);
         self.max = self.max.max(estimate.distance_to(truth));
         self.last = Some((estimate, truth));
-        self.track.push((t_ns as f64 / 1e9, estimate));
+        self.track.push((t_ns as f64 / 1e9, estimate, truth));
     }
 
     fn finish(self, name: &str) -> Result<Score> {

@@ -204,6 +204,9 @@ where
 /// A named line in a plot: legend label, points, colour.
 type Series<'a> = (&'a str, &'a [(f64, f64)], RGBColor);
 
+/// [`Series`] that owns its label and points.
+type OwnedSeries = (String, Vec<(f64, f64)>, RGBColor);
+
 /// Draw named line series with a legend; empty series are left out.
 fn draw_lines<'a, DB: DrawingBackend + 'a>(
     chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
@@ -234,5 +237,131 @@ where
         .border_style(BLACK)
         .position(legend_at)
         .draw()?;
+    Ok(())
+}
+
+/// One SVG for an accuracy case: the true path and each method's path on top, and each
+/// method's position error against distance travelled below (log scale: the methods differ
+/// by orders of magnitude).
+pub fn write_case_svg(path: &Path, title: &str, scores: &[crate::replay::Score]) -> Result<()> {
+    write_atomically(path, |tmp| case_svg(tmp, title, scores))
+}
+
+const METHOD_COLORS: [RGBColor; 4] = [
+    RGBColor(230, 140, 20),
+    RGBColor(40, 160, 60),
+    RGBColor(150, 60, 200),
+    RGBColor(220, 40, 40),
+];
+
+fn case_svg(path: &Path, title: &str, scores: &[crate::replay::Score]) -> Result<()> {
+    let Some(first) = scores.first() else {
+        anyhow::bail!("no method ran on {title}");
+    };
+    let truth: Vec<(f64, f64)> = first.track.iter().map(|(_, _, t)| (t.x, t.y)).collect();
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in &truth {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    let span = (x1 - x0).max(y1 - y0).max(0.1) * 1.1;
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let root = SVGBackend::new(path, (800, 1100)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, bottom) = root.split_vertically(800);
+    let mut chart = ChartBuilder::on(&top)
+        .caption(title, ("sans-serif", 18))
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(
+            cx - span / 2.0..cx + span / 2.0,
+            cy - span / 2.0..cy + span / 2.0,
+        )?;
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .draw()?;
+    let paths: Vec<OwnedSeries> =
+        std::iter::once(("ground truth".to_string(), truth.clone(), BLACK))
+            .chain(
+                scores
+                    .iter()
+                    .zip(METHOD_COLORS.iter().cycle())
+                    .map(|(s, &c)| {
+                        (
+                            s.name.clone(),
+                            s.track.iter().map(|(_, e, _)| (e.x, e.y)).collect(),
+                            c,
+                        )
+                    }),
+            )
+            .collect();
+    let series: Vec<Series> = paths
+        .iter()
+        .map(|(n, p, c)| (n.as_str(), p.as_slice(), *c))
+        .collect();
+    draw_lines(&mut chart, &series, 1, SeriesLabelPosition::LowerRight)?;
+
+    // Error against distance travelled along the truth, log scale.
+    let mut travelled = Vec::with_capacity(truth.len());
+    let mut d = 0.0;
+    for (i, p) in truth.iter().enumerate() {
+        if i > 0 {
+            d += (p.0 - truth[i - 1].0).hypot(p.1 - truth[i - 1].1);
+        }
+        travelled.push(d);
+    }
+    let floor = 1e-4; // µm; errors below read as the floor
+    let errors: Vec<OwnedSeries> = scores
+        .iter()
+        .zip(METHOD_COLORS.iter().cycle())
+        .map(|(s, &c)| {
+            let e = s
+                .track
+                .iter()
+                .zip(&travelled)
+                .map(|((_, e, t), &d)| (d, (e.distance_to(*t) * 1e6).max(floor)))
+                .collect();
+            (s.name.clone(), e, c)
+        })
+        .collect();
+    let e_max = errors
+        .iter()
+        .flat_map(|(_, e, _)| e.iter().map(|p| p.1))
+        .fold(1.0f64, f64::max)
+        * 2.0;
+    let mut chart = ChartBuilder::on(&bottom)
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..d.max(1e-3), (floor..e_max).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("distance travelled (m)")
+        .y_desc("position error (µm)")
+        .draw()?;
+    let series: Vec<Series> = errors
+        .iter()
+        .map(|(n, p, c)| (n.as_str(), p.as_slice(), *c))
+        .collect();
+    for &(name, data, color) in &series {
+        chart
+            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))?
+            .label(name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()?;
+    root.present()?;
     Ok(())
 }

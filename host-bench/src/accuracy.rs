@@ -1,0 +1,205 @@
+//! `host-bench accuracy`: every seed case, every sensor mode, all four odometry methods, side
+//! by side, with the paper's reported figure beside each case (SPEC §5, §6).
+//!
+//! Each case generates the exact tick stream of a seed robot along a seed trajectory
+//! ([`crate::generate`]) in memory and replays it ([`crate::replay`]) with ideal encoders, in
+//! tick-timestamp mode and as counters sampled at 1 kHz and 10 kHz. The robot files are built
+//! into the binary, so the command runs from anywhere.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+use crate::generate::{generate, GenerateOptions};
+use crate::replay::{self, Mode, Score};
+use crate::robot::Robot;
+use crate::trajectory;
+
+/// A seed case: a trajectory, the robot that drives it, and what the paper reports.
+#[derive(Clone, Copy, Debug)]
+pub struct Case {
+    pub trajectory: &'static str,
+    /// File name in `robots/`.
+    pub robot: &'static str,
+    pub paper_figure: &'static str,
+}
+
+const SEED000: &str = "seed 000: <= 1.5 mm (0.18 %) on 80 cm paths, Δ 0.1-0.8 mm";
+
+/// Every case of SPEC §5. Holonomic paths go to seed 000's omni triangle, the others to seed
+/// 001's differential drive (UMBmark is a differential-drive benchmark).
+pub fn cases() -> Vec<Case> {
+    let c = |trajectory, robot, paper_figure| Case {
+        trajectory,
+        robot,
+        paper_figure,
+    };
+    vec![
+        c("seed000-line", "seed000-0.1mm.toml", SEED000),
+        c("seed000-bezier-0deg", "seed000-0.1mm.toml", SEED000),
+        c("seed000-bezier-90deg", "seed000-0.1mm.toml", SEED000),
+        c("seed000-bezier-90deg", "seed000-0.4mm.toml", SEED000),
+        c("seed000-bezier-90deg", "seed000-0.8mm.toml", SEED000),
+        c("seed000-bezier-180deg", "seed000-0.1mm.toml", SEED000),
+        c("seed000-two-beziers", "seed000-0.1mm.toml", SEED000),
+        c(
+            "seed001-figure-eight",
+            "seed001.toml",
+            "seed 001: 1 cm in x, 1 cm in y",
+        ),
+        c(
+            "seed001-straight-40m",
+            "seed001.toml",
+            "seed 001: 1 cm in x, 0 in y",
+        ),
+        c(
+            "seed001-curve",
+            "seed001.toml",
+            "seed 001: 2.5 cm in x, 1 cm in y",
+        ),
+        c(
+            "seed002-square",
+            "seed000-0.1mm.toml",
+            "seed 002: tracking only, no odometry figure",
+        ),
+        c(
+            "seed002-diagonal",
+            "seed000-0.1mm.toml",
+            "seed 002: tracking only, no odometry figure",
+        ),
+        c(
+            "seed002-circle",
+            "seed001.toml",
+            "seed 002: tracking only, no odometry figure",
+        ),
+        c(
+            "umbmark-cw",
+            "seed001.toml",
+            "UMBmark: no figure in the seeds",
+        ),
+        c(
+            "umbmark-ccw",
+            "seed001.toml",
+            "UMBmark: no figure in the seeds",
+        ),
+    ]
+}
+
+/// The sensor modes every case runs in.
+pub fn modes() -> [Mode; 3] {
+    [
+        Mode::Timestamps,
+        Mode::Counts { rate_hz: 1_000.0 },
+        Mode::Counts { rate_hz: 10_000.0 },
+    ]
+}
+
+fn robot_text(file: &str) -> Option<&'static str> {
+    Some(match file {
+        "seed000-0.1mm.toml" => include_str!("../../robots/seed000-0.1mm.toml"),
+        "seed000-0.4mm.toml" => include_str!("../../robots/seed000-0.4mm.toml"),
+        "seed000-0.8mm.toml" => include_str!("../../robots/seed000-0.8mm.toml"),
+        "seed001.toml" => include_str!("../../robots/seed001.toml"),
+        _ => return None,
+    })
+}
+
+/// One case in one mode.
+#[derive(Clone, Debug, Serialize)]
+pub struct CaseResult {
+    pub case: String,
+    pub robot: String,
+    pub mode: String,
+    pub path_length_m: f64,
+    pub paper: String,
+    pub algorithms: Vec<Score>,
+    /// Methods that cannot run here (e.g. `timing` on sampled counts), with the reason.
+    pub skipped: Vec<Skipped>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Skipped {
+    pub name: String,
+    pub reason: String,
+}
+
+/// Run every case in every mode. `progress` is called after each (case, mode) with a label.
+pub fn run(mut progress: impl FnMut(&str)) -> Result<Vec<CaseResult>> {
+    let mut results = Vec::new();
+    for case in cases() {
+        let text =
+            robot_text(case.robot).with_context(|| format!("no built-in robot {}", case.robot))?;
+        let robot = Robot::parse(text, Path::new(&format!("robots/{}", case.robot)))?;
+        let traj = trajectory::build(case.trajectory)
+            .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
+        let stream = generate(
+            &robot,
+            Some(&format!("../robots/{}", case.robot)),
+            traj.as_ref(),
+            &GenerateOptions::default(),
+        )
+        .with_context(|| format!("generating {} for {}", case.trajectory, robot.name))?;
+        for mode in modes() {
+            let mut algorithms = Vec::new();
+            let mut skipped = Vec::new();
+            for name in replay::ALGORITHMS {
+                match replay::replay(&robot, &stream, name, mode) {
+                    Ok(s) => algorithms.push(s),
+                    Err(e) => skipped.push(Skipped {
+                        name: name.to_string(),
+                        reason: format!("{e:#}"),
+                    }),
+                }
+            }
+            let path_length_m = algorithms.first().map_or(0.0, |s| s.path_length_m);
+            results.push(CaseResult {
+                case: case.trajectory.into(),
+                robot: robot.name.clone(),
+                mode: mode.to_string(),
+                path_length_m,
+                paper: case.paper_figure.into(),
+                algorithms,
+                skipped,
+            });
+            progress(&format!("{} on {} ({mode})", case.trajectory, robot.name));
+        }
+    }
+    Ok(results)
+}
+
+/// The side-by-side table.
+pub fn table(results: &[CaseResult]) -> String {
+    let mut out = String::new();
+    let names = replay::ALGORITHMS;
+    out.push_str(&format!(
+        "{:<24} {:<14} {:<16} {:>8}",
+        "case", "robot", "mode", "path m"
+    ));
+    for n in names {
+        out.push_str(&format!(" {:>19}", format!("{n} final/max mm")));
+    }
+    out.push_str("  paper\n");
+    for r in results {
+        out.push_str(&format!(
+            "{:<24} {:<14} {:<16} {:>8.3}",
+            r.case, r.robot, r.mode, r.path_length_m
+        ));
+        for n in names {
+            let cell = match r.algorithms.iter().find(|s| s.name == *n) {
+                Some(s) => format!("{:.4}/{:.4}", s.final_error_m * 1e3, s.max_error_m * 1e3),
+                None => "-".into(),
+            };
+            out.push_str(&format!(" {cell:>19}"));
+        }
+        out.push_str(&format!(
+            "  {}\n",
+            if r.mode == "timestamps" {
+                r.paper.as_str()
+            } else {
+                ""
+            }
+        ));
+    }
+    out
+}
