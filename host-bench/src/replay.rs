@@ -17,7 +17,7 @@
 use anyhow::{bail, Context, Result};
 use robot_math::arc::ArcOdometry;
 use robot_math::exact::{ExactOdometry, ExactParams, FixedPose, MAX_ENCODERS};
-use robot_math::lut::LutOdometry;
+use robot_math::lut::{LutN, LutOdometry};
 use robot_math::se2::wrap_angle;
 use robot_math::ticks::TickTracker;
 use robot_math::timing::TimingOdometry;
@@ -209,6 +209,46 @@ impl Estimator for Lut {
     }
 }
 
+/// [`LutN`], fed like [`Lut`].
+struct LutGeneral {
+    odo: LutN,
+    per_tick: bool,
+    applied: [i64; MAX_ENCODERS],
+    n: usize,
+}
+
+impl Estimator for LutGeneral {
+    fn tick(&mut self, _t_ns: u64, encoder: usize, step: i8) {
+        if self.per_tick {
+            self.odo.tick(encoder, step);
+            self.applied[encoder] += step as i64;
+        }
+    }
+
+    fn update(
+        &mut self,
+        _t_ns: u64,
+        wheels: &[TickTracker; MAX_ENCODERS],
+        _interpolate: bool,
+    ) -> Pose2 {
+        if !self.per_tick {
+            let mut todo: [i64; MAX_ENCODERS] =
+                core::array::from_fn(|j| wheels[j].count() - self.applied[j]);
+            while todo[..self.n].iter().any(|&t| t != 0) {
+                for (w, left) in todo.iter_mut().enumerate().take(self.n) {
+                    if *left != 0 {
+                        let step = left.signum() as i8;
+                        self.odo.tick(w, step);
+                        *left -= step as i64;
+                        self.applied[w] += step as i64;
+                    }
+                }
+            }
+        }
+        self.odo.pose()
+    }
+}
+
 /// Seed 000's timing method: every tick with its time.
 struct Timing {
     odo: TimingOdometry,
@@ -318,21 +358,33 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
             n,
         }),
         "lut" => {
-            let Some((step, track)) = seed001_layout(robot) else {
-                bail!(
-                    "robot {}: `lut` (seed 001) needs a differential drive: two encoders on one axle \
-                     through the reference point, left then right, rolling forward, same travel per count",
-                    robot.name
-                );
-            };
             // Seed 001 keeps coordinates unsigned (about 42.9 m of range at 10^-8 m): like the
             // paper, put the field origin so the whole run stays positive, 1 m inside the square.
             let origin = lut_origin(stream);
-            Box::new(Lut {
-                odo: LutOdometry::with_origin_offset(step, track, start, origin),
-                per_tick: mode == Mode::Timestamps,
-                applied: [0; 2],
-            })
+            match seed001_layout(robot) {
+                // The paper's own method, for its differential drive.
+                Some((step, track)) => Box::new(Lut {
+                    odo: LutOdometry::with_origin_offset(step, track, start, origin),
+                    per_tick: mode == Mode::Timestamps,
+                    applied: [0; 2],
+                }),
+                // Its ideas on other layouts whose wheels turn the body by equal steps.
+                None => {
+                    let odo = LutN::new(&solver, &k, start, origin).map_err(|e| {
+                        anyhow::anyhow!(
+                            "robot {}: `lut` (seed 001) needs a differential drive, or wheels that \
+                             all turn the body by the same angle per tick ({e:?})",
+                            robot.name
+                        )
+                    })?;
+                    Box::new(LutGeneral {
+                        odo,
+                        per_tick: mode == Mode::Timestamps,
+                        applied: [0; MAX_ENCODERS],
+                        n,
+                    })
+                }
+            }
         }
         "timing" => {
             if mode != Mode::Timestamps {
