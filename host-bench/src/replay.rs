@@ -57,6 +57,9 @@ pub struct Score {
     pub max_error_m: f64,
     pub final_heading_error_rad: f64,
     pub path_length_m: f64,
+    /// Median position error over the truth rows: the error while moving, which start-up and
+    /// standstill quantisation (the maximum and often the final error) do not dominate.
+    pub median_error_m: f64,
     /// Truth rows scored.
     pub truth_rows: usize,
     /// Every truth row scored: (t s, estimate, truth).
@@ -508,8 +511,15 @@ impl Scorer {
         let (estimate, truth) = self
             .last
             .context("the stream has no truth rows: nothing to score against")?;
+        let mut errors: Vec<f64> = self
+            .track
+            .iter()
+            .map(|(_, e, t)| e.distance_to(*t))
+            .collect();
+        errors.sort_by(f64::total_cmp);
         Ok(Score {
             name: name.into(),
+            median_error_m: errors[errors.len() / 2],
             final_error_m: estimate.distance_to(truth),
             max_error_m: self.max,
             final_heading_error_rad: wrap_angle(estimate.theta - truth.theta),

@@ -16,16 +16,6 @@ fn score<'a>(r: &'a CaseResult, name: &str) -> Option<&'a Score> {
     r.algorithms.iter().find(|s| s.name == name)
 }
 
-fn median_error(s: &Score) -> f64 {
-    let mut e: Vec<f64> = s
-        .track
-        .iter()
-        .map(|(_, est, truth)| est.distance_to(*truth))
-        .collect();
-    e.sort_by(f64::total_cmp);
-    e[e.len() / 2]
-}
-
 #[test]
 fn every_case_in_every_mode_with_all_four_methods_or_a_reason() {
     let r = results();
@@ -78,12 +68,12 @@ fn while_moving_exact_is_at_least_ten_times_better_than_every_baseline() {
     // "Accuracy of the odometry methods".) Measured: at least 26x, typically 200-4500x.
     let mut compared = 0;
     for c in results().iter().filter(|c| c.mode == "timestamps") {
-        let exact = median_error(score(c, "exact").unwrap());
+        let exact = score(c, "exact").unwrap().median_error_m;
         let best = c
             .algorithms
             .iter()
             .filter(|s| s.name != "exact")
-            .map(median_error)
+            .map(|s| s.median_error_m)
             .fold(f64::MAX, f64::min);
         if best > 10e-6 {
             compared += 1;
