@@ -31,6 +31,10 @@ use crate::tickstream::{Event, TickStream};
 /// The estimators `replay` knows, in report order.
 pub const ALGORITHMS: &[&str] = &["arc", "lut", "timing", "exact"];
 
+/// Also accepted by [`replay`]: `exact`'s f64 twin, fed the same (interpolated) counts, for
+/// checking the fixed-point version against it.
+pub const ORACLE: &str = "exact-f64";
+
 /// How the estimator sees the encoders.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Mode {
@@ -142,6 +146,28 @@ impl Estimator for Exact {
             (true, false) => wheels[j].count() << 16,
         });
         self.odo.update_q16(&q).to_pose2()
+    }
+}
+
+struct ExactF64 {
+    odo: robot_math::exact::ExactOracle,
+    n: usize,
+}
+
+impl Estimator for ExactF64 {
+    fn update(
+        &mut self,
+        t_ns: u64,
+        wheels: &[TickTracker; MAX_ENCODERS],
+        interpolate: bool,
+    ) -> Pose2 {
+        let c: [f64; MAX_ENCODERS] = core::array::from_fn(|j| match (j < self.n, interpolate) {
+            (false, _) => 0.0,
+            // The same Q16 positions the fixed-point version sees.
+            (true, true) => wheels[j].position_q16(t_ns) as f64 / 65536.0,
+            (true, false) => wheels[j].count() as f64,
+        });
+        self.odo.update(&c[..self.n])
     }
 }
 
@@ -356,6 +382,10 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
                 n,
             })
         }
+        ORACLE => Box::new(ExactF64 {
+            odo: robot_math::exact::ExactOracle::new(solver, &k, start, &vec![0.0; n]),
+            n,
+        }),
         "arc" => Box::new(Arc {
             odo: ArcOdometry::new(solver, &k, start, &vec![0.0; n]),
             n,

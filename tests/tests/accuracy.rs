@@ -132,3 +132,29 @@ fn sampled_counts_stay_within_the_quantisation_bound() {
         );
     }
 }
+
+#[test]
+fn fixed_point_exact_stays_within_tolerance_of_its_f64_twin_on_every_stream() {
+    // Documented tolerance (docs/odometry.md): 1 µm in position, 1e-6 rad in heading, at every
+    // truth row of every case, in every mode.
+    for c in results() {
+        assert!(
+            c.exact_vs_f64_m < 1e-6,
+            "{} {} {}: {} m",
+            c.case,
+            c.robot,
+            c.mode,
+            c.exact_vs_f64_m
+        );
+        assert!(
+            c.exact_vs_f64_rad < 1e-6,
+            "{} {} {}: {} rad",
+            c.case,
+            c.robot,
+            c.mode,
+            c.exact_vs_f64_rad
+        );
+    }
+    // And the twin was really compared: the two are not bit-identical.
+    assert!(results().iter().any(|c| c.exact_vs_f64_m > 0.0));
+}
