@@ -1,12 +1,17 @@
 //! The slave's odometry, switchable between methods at run time (SPEC §3: users compare them on
 //! the same robot). `Exact` is the default and integer-only; `Arc` is seed 004's algorithm in
-//! floats (slow without an FPU, but it is the paper's baseline). A switch continues from the
-//! current pose, so the robot does not jump.
+//! floats (slow without an FPU, but it is the paper's baseline); `Lut` is seed 001's table
+//! method on the carriage (itself a differential drive), fed each sample's count changes as
+//! ticks. `Timing` needs every tick's time stamp, which hardware quadrature counting does not
+//! give, so this build refuses it. A switch continues from the current pose, so the robot
+//! does not jump.
 
 use protocol::spi::OdometryAlgorithm;
 use robot_math::arc::CarriageArc;
 use robot_math::carriage::{CarriageExact, CarriageGeometry};
 use robot_math::exact::FixedPose;
+use robot_math::lut::LutOdometry;
+use robot_math::Pose2;
 
 // One instance lives in the odometry task's future (no heap on the board); the size gap
 // between the float and the integer method costs 400 bytes of RAM once, not per update.
@@ -14,6 +19,40 @@ use robot_math::exact::FixedPose;
 enum Method {
     Exact(CarriageExact),
     Arc(CarriageArc),
+    Lut(CarriageLut),
+}
+
+/// Seed 001's method on the carriage's two wheels; the body follows through the swivel.
+struct CarriageLut {
+    odo: LutOdometry,
+    applied: [i64; 2],
+}
+
+impl CarriageLut {
+    fn new(geom: &CarriageGeometry, body: Pose2, totals: [i64; 2], code: u16) -> Self {
+        let carriage = geom.carriage_pose(body, geom.swivel_angle(code));
+        CarriageLut {
+            odo: LutOdometry::new(geom.metres_per_count[0], geom.wheel_base, carriage),
+            applied: totals,
+        }
+    }
+
+    fn update(&mut self, geom: &CarriageGeometry, totals: [i64; 2], code: u16) -> Pose2 {
+        // The count changes since the last sample, as ticks, the two wheels interleaved.
+        let mut todo = [totals[0] - self.applied[0], totals[1] - self.applied[1]];
+        while todo != [0, 0] {
+            for (wheel, left) in todo.iter_mut().enumerate() {
+                if *left != 0 {
+                    let step = left.signum() as i8;
+                    // Wheel 0 is the left wheel in both conventions.
+                    self.odo.tick(wheel as u8, step);
+                    *left -= step as i64;
+                }
+            }
+        }
+        self.applied = totals;
+        geom.body_pose(self.odo.pose(), geom.swivel_angle(code))
+    }
 }
 
 pub(crate) struct SlaveOdometry {
@@ -37,6 +76,7 @@ impl SlaveOdometry {
         match self.method {
             Method::Exact(_) => OdometryAlgorithm::Exact,
             Method::Arc(_) => OdometryAlgorithm::Arc,
+            Method::Lut(_) => OdometryAlgorithm::Lut,
         }
     }
 
@@ -45,6 +85,7 @@ impl SlaveOdometry {
         self.pose = match &mut self.method {
             Method::Exact(e) => e.update(totals, code),
             Method::Arc(a) => FixedPose::from_pose2(a.update(totals.map(|c| c as f64), code)),
+            Method::Lut(l) => FixedPose::from_pose2(l.update(&self.geom, totals, code)),
         };
         self.pose
     }
@@ -64,12 +105,13 @@ impl SlaveOdometry {
                     *a = fresh;
                 }
             }
+            Method::Lut(l) => *l = CarriageLut::new(&self.geom, pose.to_pose2(), totals, code),
         }
         self.pose = pose;
     }
 
     /// Switch method, continuing from the current pose. False if this build cannot run it
-    /// (`Timing` needs tick time stamps; `Lut` is not on the slave yet).
+    /// (`Timing` needs tick time stamps).
     pub fn switch(&mut self, algorithm: OdometryAlgorithm, totals: [i64; 2], code: u16) -> bool {
         if algorithm == self.algorithm() {
             return true;
@@ -82,7 +124,10 @@ impl SlaveOdometry {
             OdometryAlgorithm::Arc => {
                 CarriageArc::new(self.geom, here, totals.map(|c| c as f64), code).map(Method::Arc)
             }
-            OdometryAlgorithm::Lut | OdometryAlgorithm::Timing => None,
+            OdometryAlgorithm::Lut => Some(Method::Lut(CarriageLut::new(
+                &self.geom, here, totals, code,
+            ))),
+            OdometryAlgorithm::Timing => None,
         };
         match next {
             Some(m) => {

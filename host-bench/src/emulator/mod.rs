@@ -339,7 +339,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     if slave_frame.status & protocol::spi::slave_status::ALGORITHM_UNSUPPORTED != 0 {
         bail!(
             "the slave cannot run {:?}: this slave build counts encoders in hardware and has no tick \
-             time stamps or table method; it kept running {:?}",
+             time stamps; it kept running {:?}",
             opts.algorithm,
             slave_frame.algorithm
         );
