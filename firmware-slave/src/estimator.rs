@@ -11,6 +11,7 @@ use robot_math::arc::CarriageArc;
 use robot_math::carriage::{CarriageExact, CarriageGeometry};
 use robot_math::exact::FixedPose;
 use robot_math::lut::LutOdometry;
+use robot_math::ticks::counts_as_ticks;
 use robot_math::Pose2;
 
 // One instance lives in the odometry task's future (no heap on the board); the size gap
@@ -39,18 +40,10 @@ impl CarriageLut {
 
     fn update(&mut self, geom: &CarriageGeometry, totals: [i64; 2], code: u16) -> Pose2 {
         // The count changes since the last sample, as ticks, the two wheels interleaved.
-        let mut todo = [totals[0] - self.applied[0], totals[1] - self.applied[1]];
-        while todo != [0, 0] {
-            for (wheel, left) in todo.iter_mut().enumerate() {
-                if *left != 0 {
-                    let step = left.signum() as i8;
-                    // Wheel 0 is the left wheel in both conventions.
-                    self.odo.tick(wheel as u8, step);
-                    *left -= step as i64;
-                }
-            }
-        }
-        self.applied = totals;
+        // Wheel 0 is the left wheel in both conventions.
+        counts_as_ticks(&mut self.applied, &totals, |wheel, step| {
+            self.odo.tick(wheel as u8, step)
+        });
         geom.body_pose(self.odo.pose(), geom.swivel_angle(code))
     }
 }

@@ -220,6 +220,26 @@ pub fn table(results: &[CaseResult]) -> String {
     out
 }
 
+/// For each tick-timestamp row where the best baseline's median error exceeds 10 µm (below
+/// that every method is near-exact and there is nothing to separate): the row and how many
+/// times `exact`'s median error is below that baseline's.
+pub fn median_advantage(results: &[CaseResult]) -> Vec<(&CaseResult, f64)> {
+    results
+        .iter()
+        .filter(|r| r.mode == "timestamps")
+        .filter_map(|r| {
+            let exact = r.algorithms.iter().find(|s| s.name == "exact")?;
+            let best = r
+                .algorithms
+                .iter()
+                .filter(|s| s.name != "exact")
+                .map(|s| s.median_error_m)
+                .fold(f64::MAX, f64::min);
+            (best > 10e-6).then(|| (r, best / exact.median_error_m.max(1e-12)))
+        })
+        .collect()
+}
+
 /// The headline comparisons, from the tick-timestamp rows.
 pub fn summary(results: &[CaseResult]) -> String {
     let ts: Vec<&CaseResult> = results.iter().filter(|r| r.mode == "timestamps").collect();
@@ -228,19 +248,10 @@ pub fn summary(results: &[CaseResult]) -> String {
         .iter()
         .filter_map(|r| exact(r).map(|e| e.final_error_m / r.path_length_m))
         .fold(0.0f64, f64::max);
-    let mut ratios = Vec::new();
-    for r in &ts {
-        let Some(e) = exact(r) else { continue };
-        let best = r
-            .algorithms
-            .iter()
-            .filter(|s| s.name != "exact")
-            .map(|s| s.median_error_m)
-            .fold(f64::MAX, f64::min);
-        if best > 10e-6 {
-            ratios.push(best / e.median_error_m.max(1e-12));
-        }
-    }
+    let mut ratios: Vec<f64> = median_advantage(results)
+        .into_iter()
+        .map(|(_, ratio)| ratio)
+        .collect();
     ratios.sort_by(f64::total_cmp);
     let (dev_m, dev_rad) = results.iter().fold((0.0f64, 0.0f64), |(m, r), c| {
         (m.max(c.exact_vs_f64_m), r.max(c.exact_vs_f64_rad))

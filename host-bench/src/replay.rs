@@ -19,7 +19,7 @@ use robot_math::arc::ArcOdometry;
 use robot_math::exact::{ExactOdometry, ExactParams, FixedPose, MAX_ENCODERS};
 use robot_math::lut::{LutN, LutOdometry};
 use robot_math::se2::wrap_angle;
-use robot_math::ticks::TickTracker;
+use robot_math::ticks::{counts_as_ticks, TickTracker};
 use robot_math::timing::TimingOdometry;
 use robot_math::wheelset::WheelSolver;
 use robot_math::Pose2;
@@ -195,58 +195,39 @@ impl Estimator for Arc {
     }
 }
 
-/// Seed 001's table method works tick by tick (that is its point). With time stamps it sees
-/// every tick as it happens; reading sampled counts, it applies each sample's count changes as
-/// ticks, the two wheels interleaved.
-struct Lut {
-    odo: LutOdometry,
-    per_tick: bool,
-    applied: [i64; 2],
+/// Methods that work tick by tick (seed 001's tables: that is their point).
+trait TickByTick {
+    fn tick(&mut self, wheel: usize, step: i8);
+    fn pose(&self) -> Pose2;
 }
 
-impl Estimator for Lut {
-    fn tick(&mut self, _t_ns: u64, encoder: usize, step: i8) {
-        if self.per_tick {
-            self.odo.tick(encoder as u8, step);
-            self.applied[encoder] += step as i64;
-        }
+impl TickByTick for LutOdometry {
+    fn tick(&mut self, wheel: usize, step: i8) {
+        LutOdometry::tick(self, wheel as u8, step);
     }
-
-    fn update(
-        &mut self,
-        _t_ns: u64,
-        wheels: &[TickTracker; MAX_ENCODERS],
-        _interpolate: bool,
-    ) -> Pose2 {
-        if !self.per_tick {
-            let mut todo = [
-                wheels[0].count() - self.applied[0],
-                wheels[1].count() - self.applied[1],
-            ];
-            while todo != [0, 0] {
-                for (w, left) in todo.iter_mut().enumerate() {
-                    if *left != 0 {
-                        let step = left.signum() as i8;
-                        self.odo.tick(w as u8, step);
-                        *left -= step as i64;
-                        self.applied[w] += step as i64;
-                    }
-                }
-            }
-        }
-        self.odo.pose()
+    fn pose(&self) -> Pose2 {
+        LutOdometry::pose(self)
     }
 }
 
-/// [`LutN`], fed like [`Lut`].
-struct LutGeneral {
-    odo: LutN,
+impl TickByTick for LutN {
+    fn tick(&mut self, wheel: usize, step: i8) {
+        LutN::tick(self, wheel, step);
+    }
+    fn pose(&self) -> Pose2 {
+        LutN::pose(self)
+    }
+}
+
+/// A tick-by-tick method. With time stamps it sees every tick as it happens; reading sampled
+/// counts, it gets each sample's count changes as ticks, the wheels interleaved.
+struct PerTick<T> {
+    odo: T,
     per_tick: bool,
     applied: [i64; MAX_ENCODERS],
-    n: usize,
 }
 
-impl Estimator for LutGeneral {
+impl<T: TickByTick> Estimator for PerTick<T> {
     fn tick(&mut self, _t_ns: u64, encoder: usize, step: i8) {
         if self.per_tick {
             self.odo.tick(encoder, step);
@@ -261,18 +242,8 @@ impl Estimator for LutGeneral {
         _interpolate: bool,
     ) -> Pose2 {
         if !self.per_tick {
-            let mut todo: [i64; MAX_ENCODERS] =
-                core::array::from_fn(|j| wheels[j].count() - self.applied[j]);
-            while todo[..self.n].iter().any(|&t| t != 0) {
-                for (w, left) in todo.iter_mut().enumerate().take(self.n) {
-                    if *left != 0 {
-                        let step = left.signum() as i8;
-                        self.odo.tick(w, step);
-                        *left -= step as i64;
-                        self.applied[w] += step as i64;
-                    }
-                }
-            }
+            let counts: [i64; MAX_ENCODERS] = core::array::from_fn(|j| wheels[j].count());
+            counts_as_ticks(&mut self.applied, &counts, |j, step| self.odo.tick(j, step));
         }
         self.odo.pose()
     }
@@ -396,10 +367,10 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
             let origin = lut_origin(stream);
             match seed001_layout(robot) {
                 // The paper's own method, for its differential drive.
-                Some((step, track)) => Box::new(Lut {
+                Some((step, track)) => Box::new(PerTick {
                     odo: LutOdometry::with_origin_offset(step, track, start, origin),
                     per_tick: mode == Mode::Timestamps,
-                    applied: [0; 2],
+                    applied: [0; MAX_ENCODERS],
                 }),
                 // Its ideas on other layouts whose wheels turn the body by equal steps.
                 None => {
@@ -410,11 +381,10 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
                             robot.name
                         )
                     })?;
-                    Box::new(LutGeneral {
+                    Box::new(PerTick {
                         odo,
                         per_tick: mode == Mode::Timestamps,
                         applied: [0; MAX_ENCODERS],
-                        n,
                     })
                 }
             }

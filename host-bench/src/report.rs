@@ -98,26 +98,7 @@ fn write_svg(run: &Run, path: &Path) -> Result<()> {
     let master = pts(|r| r.master_x_m.zip(r.master_y_m));
     let target = pts(|r| r.target_x_m.zip(r.target_y_m));
 
-    // Equal scales on both axes, with a margin, so the path's shape is true.
-    let all = truth.iter().chain(&slave).chain(&target);
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for &(x, y) in all {
-        x0 = x0.min(x);
-        x1 = x1.max(x);
-        y0 = y0.min(y);
-        y1 = y1.max(y);
-    }
-    if x0 > x1 {
-        (x0, x1, y0, y1) = (-1.0, 1.0, -1.0, 1.0);
-    }
-    let span = (x1 - x0).max(y1 - y0).max(0.1) * 1.1;
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-    let (x0, x1, y0, y1) = (
-        cx - span / 2.0,
-        cx + span / 2.0,
-        cy - span / 2.0,
-        cy + span / 2.0,
-    );
+    let (x0, x1, y0, y1) = square_bounds(truth.iter().chain(&slave).chain(&target));
 
     let root = SVGBackend::new(path, (800, 1100)).into_drawing_area();
     root.fill(&WHITE)?;
@@ -201,6 +182,29 @@ where
     Ok(())
 }
 
+/// A square window (x0, x1, y0, y1) around the points with a 10 % margin: equal scales on both
+/// axes, so a path's shape is true.
+fn square_bounds<'a>(points: impl IntoIterator<Item = &'a (f64, f64)>) -> (f64, f64, f64, f64) {
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in points {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if x0 > x1 {
+        (x0, x1, y0, y1) = (-1.0, 1.0, -1.0, 1.0);
+    }
+    let span = (x1 - x0).max(y1 - y0).max(0.1) * 1.1;
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    (
+        cx - span / 2.0,
+        cx + span / 2.0,
+        cy - span / 2.0,
+        cy + span / 2.0,
+    )
+}
+
 /// A named line in a plot: legend label, points, colour.
 type Series<'a> = (&'a str, &'a [(f64, f64)], RGBColor);
 
@@ -259,15 +263,7 @@ fn case_svg(path: &Path, title: &str, scores: &[crate::replay::Score]) -> Result
         anyhow::bail!("no method ran on {title}");
     };
     let truth: Vec<(f64, f64)> = first.track.iter().map(|(_, _, t)| (t.x, t.y)).collect();
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for &(x, y) in &truth {
-        x0 = x0.min(x);
-        x1 = x1.max(x);
-        y0 = y0.min(y);
-        y1 = y1.max(y);
-    }
-    let span = (x1 - x0).max(y1 - y0).max(0.1) * 1.1;
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let (x0, x1, y0, y1) = square_bounds(&truth);
     let root = SVGBackend::new(path, (800, 1100)).into_drawing_area();
     root.fill(&WHITE)?;
     let (top, bottom) = root.split_vertically(800);
@@ -276,10 +272,7 @@ fn case_svg(path: &Path, title: &str, scores: &[crate::replay::Score]) -> Result
         .margin(15)
         .x_label_area_size(40)
         .y_label_area_size(50)
-        .build_cartesian_2d(
-            cx - span / 2.0..cx + span / 2.0,
-            cy - span / 2.0..cy + span / 2.0,
-        )?;
+        .build_cartesian_2d(x0..x1, y0..y1)?;
     chart
         .configure_mesh()
         .x_desc("x (m)")

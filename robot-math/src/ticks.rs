@@ -202,3 +202,44 @@ mod tests {
         assert_eq!(w.position_q16(10), 0);
     }
 }
+
+/// Feed per-tick methods (seed 001's table method) from sampled counts: the change of each
+/// wheel's count since `applied` becomes that many ±1 ticks, the wheels interleaved so no
+/// wheel runs ahead of the others by more than a tick. `applied` is brought up to `counts`.
+pub fn counts_as_ticks(applied: &mut [i64], counts: &[i64], mut tick: impl FnMut(usize, i8)) {
+    loop {
+        let mut moved = false;
+        for (j, (a, &c)) in applied.iter_mut().zip(counts).enumerate() {
+            if *a != c {
+                let step = (c - *a).signum() as i8;
+                tick(j, step);
+                *a += step as i64;
+                moved = true;
+            }
+        }
+        if !moved {
+            break;
+        }
+    }
+}
+
+#[cfg(test)]
+mod counts_as_ticks_tests {
+    use super::counts_as_ticks;
+
+    #[test]
+    fn interleaves_and_catches_up() {
+        let mut applied = [0i64, 5];
+        let mut seen = [0i64; 2];
+        let mut order = [0usize; 16];
+        let mut n = 0;
+        counts_as_ticks(&mut applied, &[3, 3], |j, s| {
+            seen[j] += s as i64;
+            order[n] = j;
+            n += 1;
+        });
+        assert_eq!(applied, [3, 3]);
+        assert_eq!(seen, [3, -2]);
+        assert_eq!(&order[..n], &[0, 1, 0, 1, 0]);
+    }
+}

@@ -66,25 +66,16 @@ fn while_moving_exact_is_at_least_ten_times_better_than_every_baseline() {
     // Median error over the run, where the best baseline's is above 10 µm. (Final errors at
     // standstill are bounded by the stopped wheels' quantisation for every method: README,
     // "Accuracy of the odometry methods".) Measured: at least 26x, typically 200-4500x.
-    let mut compared = 0;
-    for c in results().iter().filter(|c| c.mode == "timestamps") {
-        let exact = score(c, "exact").unwrap().median_error_m;
-        let best = c
-            .algorithms
-            .iter()
-            .filter(|s| s.name != "exact")
-            .map(|s| s.median_error_m)
-            .fold(f64::MAX, f64::min);
-        if best > 10e-6 {
-            compared += 1;
-            assert!(
-                best >= 10.0 * exact,
-                "{} on {}: exact {exact} m, best baseline {best} m",
-                c.case,
-                c.robot
-            );
-        }
+    let advantage = accuracy::median_advantage(results());
+    for (c, ratio) in &advantage {
+        assert!(
+            *ratio >= 10.0,
+            "{} on {}: exact only {ratio}x below the best baseline",
+            c.case,
+            c.robot
+        );
     }
+    let compared = advantage.len();
     assert!(
         compared >= 8,
         "too few cases where the baselines err measurably: {compared}"
