@@ -22,6 +22,10 @@ ROOTS = [
     # The slave's default: seed 004's carriage on the exact integrator.
     "robot_math::carriage::CarriageExact::update",
     "robot_math::carriage::CarriageExact::set_body",
+    # Tick-timestamp mode: edge decoding and interpolation to the update instant.
+    "robot_math::sensors::QuadratureDecoder::edge",
+    "robot_math::ticks::TickTracker::tick",
+    "robot_math::ticks::TickTracker::position_q16",
     # Wire conversions the slave does on every update and every set-pose.
     "robot_math::exact::FixedPose::micrometres",
     "robot_math::exact::FixedPose::from_micrometres",

@@ -24,13 +24,27 @@ use robot_math::carriage::CarriageGeometry;
 use robot_math::exact::FixedPose;
 use robot_math::sensors::{gray_to_binary, CounterExtender};
 
-use ports::{AbsoluteEncoderPins, QuadratureCounters, SpiSlave, MEASURING_WHEELS};
+use estimator::Sample;
+use ports::{AbsoluteEncoderPins, EncoderEdges, QuadratureCounters, SpiSlave, MEASURING_WHEELS};
+use robot_math::sensors::{Quadrature, QuadratureDecoder};
+use robot_math::ticks::TickTracker;
 pub use shared::SlaveShared;
+
+/// How the slave sees its measuring wheels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SensorMode {
+    /// The timers' hardware quadrature counters, read at the fixed update rate.
+    Counts,
+    /// Every encoder edge with its time stamp ([`ports::EncoderEdges`]): `exact` interpolates
+    /// each wheel to the update instant, and `timing` becomes available.
+    TickTimestamps,
+}
 
 /// How the slave's sensors are built and how often it integrates.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SlaveConfig {
     pub geometry: CarriageGeometry,
+    pub sensor: SensorMode,
     /// Odometry update period (fixed rate).
     pub update_period_us: u32,
     /// The absolute encoder pulls its outputs low for a 1 bit (open-collector, negative logic,
@@ -42,6 +56,7 @@ impl SlaveConfig {
     /// Seed 004's sensors at 1 kHz.
     pub const DEFAULT: SlaveConfig = SlaveConfig {
         geometry: CarriageGeometry::SEED_004,
+        sensor: SensorMode::Counts,
         update_period_us: 1_000,
         abs_inverted: true,
     };
@@ -57,13 +72,14 @@ impl SlaveConfig {
 /// Run the slave firmware forever.
 pub async fn run(
     counters: impl QuadratureCounters,
+    edges: impl EncoderEdges,
     abs: impl AbsoluteEncoderPins,
     spi: impl SpiSlave,
     shared: &SlaveShared,
     config: &SlaveConfig,
 ) -> ! {
     join(
-        odometry_task(counters, abs, shared, config),
+        odometry_task(counters, edges, abs, shared, config),
         spi_task(spi, shared),
     )
     .await
@@ -73,19 +89,25 @@ pub async fn run(
 /// Fixed-rate sampling and pose integration.
 pub async fn odometry_task(
     mut counters: impl QuadratureCounters,
+    mut edges: impl EncoderEdges,
     mut abs: impl AbsoluteEncoderPins,
     shared: &SlaveShared,
     config: &SlaveConfig,
 ) -> ! {
     let period = Duration::from_micros(config.update_period_us as u64);
+    let timestamps = config.sensor == SensorMode::TickTimestamps;
     let mut extenders = counters.read_raw().map(CounterExtender::new);
+    let mut decoders = edges.levels().map(QuadratureDecoder::new);
+    let mut ticks = [TickTracker::new(); MEASURING_WHEELS];
+    let start = Sample {
+        counts: [0; MEASURING_WHEELS],
+        q16: [0; MEASURING_WHEELS],
+        t_ns: Instant::now().as_micros() * 1000,
+        code: config.abs_code(abs.read_levels()),
+    };
     // The integer constants are derived once, here, with (soft) floats; every update after
     // this is integer-only.
-    let Some(mut odometry) = SlaveOdometry::new(
-        config.geometry,
-        [0; MEASURING_WHEELS],
-        config.abs_code(abs.read_levels()),
-    ) else {
+    let Some(mut odometry) = SlaveOdometry::new(config.geometry, &start, timestamps) else {
         // An impossible geometry is a build mistake: publish nothing, so the master's
         // freshness watchdog sees a dead slave and keeps the motors off.
         loop {
@@ -95,7 +117,7 @@ pub async fn odometry_task(
     let mut ticker = Ticker::every(period);
     let mut next_due = Instant::now() + period;
     let mut seq: u16 = 0;
-    // Sticky until the next successful switch: the host asked for something this build lacks.
+    // Sticky until the next successful switch: the host asked for something this slave lacks.
     let mut unsupported = false;
     loop {
         ticker.next().await;
@@ -103,6 +125,7 @@ pub async fn odometry_task(
         let raw = counters.read_raw();
         let levels = abs.read_levels();
         let now = Instant::now();
+        let t_ns = now.as_micros() * 1000;
 
         let mut status = slave_status::RUNNING;
         if now > next_due + period {
@@ -119,20 +142,56 @@ pub async fn odometry_task(
         }
         let code = config.abs_code(levels);
 
+        // Tick-timestamp mode: every edge since the last update, decoded, into the trackers
+        // (and to the methods that use single ticks), then each wheel interpolated to now.
+        let sample = if timestamps {
+            let complete = edges.drain(&mut |e| {
+                let w = e.encoder as usize;
+                let Some(decoder) = decoders.get_mut(w) else {
+                    return;
+                };
+                match decoder.edge(e.levels) {
+                    Quadrature::Step(step) => {
+                        let t = e.t_us * 1000;
+                        ticks[w].tick(t, step);
+                        odometry.on_tick(t, w, step);
+                    }
+                    Quadrature::Missed => status |= slave_status::EDGES_LOST,
+                    Quadrature::None => {}
+                }
+            });
+            if !complete {
+                status |= slave_status::EDGES_LOST;
+            }
+            Sample {
+                counts: ticks.map(|t| t.count()),
+                q16: ticks.map(|t| t.position_q16(t_ns)),
+                t_ns,
+                code,
+            }
+        } else {
+            Sample {
+                counts: totals,
+                q16: totals.map(|c| c << 16),
+                t_ns,
+                code,
+            }
+        };
+
         if let Some((command_seq, command)) = shared.take_command() {
             match command {
                 SlaveCommand::SetPose(p) => {
                     let pose = FixedPose::from_micrometres(p.x_um, p.y_um, p.heading.0);
-                    odometry.set_pose(pose, totals, code);
+                    odometry.set_pose(pose, &sample);
                 }
                 SlaveCommand::SetAlgorithm(a) => {
-                    unsupported = !odometry.switch(a, totals, code);
+                    unsupported = !odometry.switch(a, &sample);
                 }
                 SlaveCommand::None => {}
             }
             shared.acknowledge(command_seq);
         }
-        let pose = odometry.update(totals, code);
+        let pose = odometry.update(&sample);
         if unsupported {
             status |= slave_status::ALGORITHM_UNSUPPORTED;
         }

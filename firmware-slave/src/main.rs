@@ -27,7 +27,17 @@ mod firmware {
         abs: board::AbsoluteEncoder,
         spi: board::SpiSlaveLink,
     ) -> ! {
-        firmware_slave::run(counters, abs, spi, &SHARED, &SlaveConfig::DEFAULT).await
+        // Hardware counters only for now: edge time stamps (EXTI on the encoder pins) are not
+        // wired on the board yet, so the slave runs in `SensorMode::Counts`.
+        firmware_slave::run(
+            counters,
+            firmware_slave::ports::NoEdges,
+            abs,
+            spi,
+            &SHARED,
+            &SlaveConfig::DEFAULT,
+        )
+        .await
     }
 
     #[embassy_executor::main]

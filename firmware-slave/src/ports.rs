@@ -47,3 +47,37 @@ pub trait SpiSlave {
         rx: &mut [u8; SPI_FRAME_LEN],
     ) -> Result<(), SpiSlaveError>;
 }
+
+/// One edge on a measuring wheel's encoder channels, as the board saw it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EncoderEdge {
+    /// Slave clock (embassy ticks: microseconds) when the edge happened.
+    pub t_us: u64,
+    pub encoder: u8,
+    /// A/B levels right after the edge: bit 0 = A, bit 1 = B.
+    pub levels: u8,
+}
+
+/// Time-stamped encoder edges (edge interrupts or input capture): what tick-timestamp mode
+/// runs on. The board records edges as they happen; the odometry task drains them at its
+/// fixed rate.
+pub trait EncoderEdges {
+    /// The A/B levels of every measuring wheel now (decoding starts from them).
+    fn levels(&mut self) -> [u8; MEASURING_WHEELS];
+    /// Hand over every edge recorded since the last call, oldest first. Returns false if
+    /// edges were lost since the last call (a full queue), so the slave can flag it.
+    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> bool;
+}
+
+/// For boards or builds without edge capture: only fixed-rate counts mode is available.
+pub struct NoEdges;
+
+impl EncoderEdges for NoEdges {
+    fn levels(&mut self) -> [u8; MEASURING_WHEELS] {
+        [0; MEASURING_WHEELS]
+    }
+    fn drain(&mut self, _f: &mut dyn FnMut(EncoderEdge)) -> bool {
+        true
+    }
+}

@@ -35,6 +35,10 @@ enum Command {
         /// Odometry algorithm the slave runs (sent to it over the protocol).
         #[arg(long, default_value = "exact", value_parser = ["exact", "arc", "lut", "timing"])]
         algorithm: String,
+        /// How the slave reads its measuring wheels: hardware `counts` at its fixed rate, or
+        /// every edge with its `timestamps` (edge interrupts).
+        #[arg(long, default_value = "counts", value_parser = ["counts", "timestamps"])]
+        sensor: String,
         /// Print the summary as one JSON object instead of text.
         #[arg(long)]
         json: bool,
@@ -129,6 +133,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             duration,
             seed,
             algorithm,
+            sensor,
             json,
             sweep,
             out,
@@ -148,6 +153,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "timing" => protocol::spi::OdometryAlgorithm::Timing,
                 _ => protocol::spi::OdometryAlgorithm::Exact,
             };
+            if sensor == "timestamps" {
+                opts.slave.sensor = firmware_slave::SensorMode::TickTimestamps;
+            }
             opts.faults.slave_off_at = fault_slave_off_at;
             opts.faults.host_silent_after = fault_host_silent_after;
             if let Some(n) = sweep {

@@ -45,6 +45,8 @@ pub struct Plant {
     /// encoder is not aligned to a count edge when the robot is switched on.
     encoder_phase: [f64; 2],
     path_length: f64,
+    /// Encoder edges since the last `take_edges`: (time s, encoder, count after the edge).
+    edges: Vec<(f64, usize, i64)>,
 }
 
 impl Plant {
@@ -62,6 +64,7 @@ impl Plant {
             duty: [0; 3],
             encoder_phase,
             path_length: 0.0,
+            edges: Vec::new(),
         }
     }
 
@@ -92,11 +95,21 @@ impl Plant {
 
     /// Quadrature counts each measuring-wheel encoder shows now (x4 decoding, ideal edges).
     pub fn encoder_counts(&self) -> [i64; 2] {
+        self.encoder_positions(&self.state).map(|p| p.floor() as i64)
+    }
+
+    /// Each encoder's position in counts (fractional), relative to its power-on count.
+    fn encoder_positions(&self, s: &State) -> [f64; 2] {
         core::array::from_fn(|i| {
-            let pos = self.state.rolled[i] / self.cfg.carriage.metres_per_count[i]
-                + self.encoder_phase[i];
-            (pos.floor() - self.encoder_phase[i].floor()) as i64
+            s.rolled[i] / self.cfg.carriage.metres_per_count[i] + self.encoder_phase[i]
+                - self.encoder_phase[i].floor()
         })
+    }
+
+    /// Every encoder edge since the last call: (time s, encoder, count after the edge),
+    /// oldest first. The instants are interpolated within each physics step.
+    pub fn take_edges(&mut self) -> Vec<(f64, usize, i64)> {
+        std::mem::take(&mut self.edges)
     }
 
     /// Swivel angle β = φ − θ, wrapped.
@@ -144,6 +157,33 @@ impl Plant {
         y = add(&y, &k3, h / 3.0);
         y = add(&y, &k4, h / 6.0);
         self.path_length += y.body.distance_to(y0.body);
+        // Edges crossed in this step, at the instant the (nearly linear over 100 µs) position
+        // crosses each whole count.
+        let (p0, p1) = (self.encoder_positions(&y0), self.encoder_positions(&y));
+        let mut crossed = Vec::new();
+        for j in 0..2 {
+            let (a, b) = (p0[j], p1[j]);
+            if a.floor() == b.floor() {
+                continue;
+            }
+            let (lo, hi) = (
+                a.floor().min(b.floor()) as i64,
+                a.floor().max(b.floor()) as i64,
+            );
+            for edge in (lo + 1)..=hi {
+                let t = self.t + h * ((edge as f64 - a) / (b - a)).clamp(0.0, 1.0);
+                let count_after = if b > a { edge } else { edge - 1 };
+                crossed.push((t, j, count_after));
+            }
+            if b < a {
+                // Downward, the higher edges are crossed first.
+                let n = crossed.len();
+                let k = (hi - lo) as usize;
+                crossed[n - k..].reverse();
+            }
+        }
+        crossed.sort_by(|x, y| x.0.total_cmp(&y.0));
+        self.edges.extend(crossed);
         self.state = y;
         self.wheel_speed = wheels_at(h);
         self.t += h;

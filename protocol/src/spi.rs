@@ -50,10 +50,9 @@ pub struct SlaveFrame {
     pub algorithm: OdometryAlgorithm,
 }
 
-/// The odometry methods (SPEC §3). The slave runs `Exact` unless told otherwise; a slave
-/// build that cannot run a method (e.g. `Timing` needs tick time stamps, which hardware
-/// quadrature counting does not give) keeps its current one and sets
-/// [`slave_status::ALGORITHM_UNSUPPORTED`].
+/// The odometry methods (SPEC §3). The slave runs `Exact` unless told otherwise; a slave that
+/// cannot run a method (`Timing` needs tick time stamps, so a slave reading only hardware
+/// counters refuses it) keeps its current one and sets [`slave_status::ALGORITHM_UNSUPPORTED`].
 #[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum OdometryAlgorithm {
@@ -78,6 +77,9 @@ pub mod slave_status {
     pub const COUNTER_JUMP: u16 = 1 << 2;
     /// The last algorithm the master asked for is not available in this slave build.
     pub const ALGORITHM_UNSUPPORTED: u16 = 1 << 3;
+    /// Tick-timestamp mode lost encoder edges (queue overflow or both channels changing at
+    /// once): the interpolated positions may be off until the next ticks.
+    pub const EDGES_LOST: u16 = 1 << 4;
 }
 
 /// What the master sends on every poll.

@@ -268,7 +268,13 @@ impl CarriageExact {
 
     /// One update with the cumulative counts and the absolute code. Integer-only.
     pub fn update(&mut self, counts: [i64; 2], abs_code: u16) -> crate::exact::FixedPose {
-        let c = self.carriage.update_counts(&[counts[0], counts[1], 0, 0]);
+        self.update_q16([counts[0] << 16, counts[1] << 16], abs_code)
+    }
+
+    /// One update with the wheels' positions in Q16 counts (interpolated between ticks in
+    /// tick-timestamp mode). Integer-only.
+    pub fn update_q16(&mut self, q16: [i64; 2], abs_code: u16) -> crate::exact::FixedPose {
+        let c = self.carriage.update_q16(&[q16[0], q16[1], 0, 0]);
         let (tx, ty) = self.dir(c.theta);
         self.body = crate::exact::FixedPose {
             x: c.x + tx,

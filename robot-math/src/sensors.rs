@@ -77,3 +77,83 @@ mod tests {
         }
     }
 }
+
+/// x4 quadrature decoding of edge events: the A/B levels after each edge give a step of ±1.
+///
+/// Levels are `bit 0 = A, bit 1 = B`. Forward is the sequence 00 → 01 → 11 → 10 → 00 (A leads
+/// B), which is what a timer in encoder mode counts up. A change of both bits at once means an
+/// edge was missed: it is reported, and no step is guessed.
+#[derive(Clone, Copy, Debug)]
+pub struct QuadratureDecoder {
+    last: u8,
+}
+
+/// What one edge meant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Quadrature {
+    Step(i8),
+    /// Levels unchanged (a bounce that came back, or a duplicate report).
+    None,
+    /// Both channels changed: at least one edge was lost.
+    Missed,
+}
+
+impl QuadratureDecoder {
+    /// Start from the current levels.
+    pub const fn new(levels: u8) -> Self {
+        QuadratureDecoder { last: levels & 3 }
+    }
+
+    /// Position of a level pair in the forward cycle.
+    const fn phase(levels: u8) -> u8 {
+        match levels & 3 {
+            0b00 => 0,
+            0b01 => 1,
+            0b11 => 2,
+            _ => 3,
+        }
+    }
+
+    /// The levels an encoder shows at cumulative count `c` (for emulation and tests).
+    pub const fn levels_at(count: i64) -> u8 {
+        [0b00, 0b01, 0b11, 0b10][count.rem_euclid(4) as usize]
+    }
+
+    pub fn edge(&mut self, levels: u8) -> Quadrature {
+        let (from, to) = (Self::phase(self.last), Self::phase(levels));
+        self.last = levels & 3;
+        match (to + 4 - from) % 4 {
+            0 => Quadrature::None,
+            1 => Quadrature::Step(1),
+            3 => Quadrature::Step(-1),
+            _ => Quadrature::Missed,
+        }
+    }
+}
+
+#[cfg(test)]
+mod quadrature_tests {
+    use super::*;
+
+    #[test]
+    fn decodes_both_directions_and_flags_missed_edges() {
+        let mut d = QuadratureDecoder::new(QuadratureDecoder::levels_at(0));
+        let mut count = 0i64;
+        for c in (1..=9).chain((3..9).rev()) {
+            match d.edge(QuadratureDecoder::levels_at(c)) {
+                Quadrature::Step(s) => count += s as i64,
+                other => panic!("{other:?} at {c}"),
+            }
+            assert_eq!(count, c);
+        }
+        // Skipping a level pair (two edges at once) is a missed edge, not a guess.
+        assert_eq!(
+            d.edge(QuadratureDecoder::levels_at(count + 2)),
+            Quadrature::Missed
+        );
+        assert_eq!(
+            d.edge(QuadratureDecoder::levels_at(count + 2)),
+            Quadrature::None
+        );
+    }
+}

@@ -164,3 +164,33 @@ fn an_algorithm_the_slave_cannot_run_fails_the_run_clearly() {
     };
     assert!(err.contains("cannot run Timing"), "{err}");
 }
+
+#[test]
+fn with_tick_time_stamps_the_slave_runs_every_method() {
+    use firmware_slave::SensorMode;
+    use protocol::spi::OdometryAlgorithm;
+    for algorithm in [
+        OdometryAlgorithm::Exact,
+        OdometryAlgorithm::Arc,
+        OdometryAlgorithm::Lut,
+        OdometryAlgorithm::Timing,
+    ] {
+        let run = run_default(2, |o| {
+            o.slave.sensor = SensorMode::TickTimestamps;
+            o.algorithm = algorithm;
+        });
+        let s = &run.summary;
+        assert_eq!(s.algorithm, format!("{algorithm:?}").to_lowercase());
+        assert!(
+            s.arrived && s.final_error_m < FINAL_ERROR_BOUND_M,
+            "{algorithm:?}: {s:?}"
+        );
+        // Every edge decoded: no lost-edge (or any other) slave fault during the run.
+        assert!(
+            run.log
+                .iter()
+                .all(|r| r.status & protocol::serial::status::SLAVE_FAULT == 0),
+            "{algorithm:?}: slave reported a fault"
+        );
+    }
+}

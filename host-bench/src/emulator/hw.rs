@@ -14,9 +14,12 @@ use std::task::{Poll, Waker};
 
 use embassy_time::{Duration, Timer};
 use firmware_master::ports::{MotorDrivers, SlaveBus, SpiMasterError};
-use firmware_slave::ports::{AbsoluteEncoderPins, QuadratureCounters, SpiSlave, SpiSlaveError};
+use firmware_slave::ports::{
+    AbsoluteEncoderPins, EncoderEdge, EncoderEdges, QuadratureCounters, SpiSlave, SpiSlaveError,
+};
 use protocol::spi::SPI_FRAME_LEN;
 use robot_math::sensors::binary_to_gray;
+use robot_math::sensors::QuadratureDecoder;
 
 use crate::plant::Plant;
 
@@ -29,6 +32,30 @@ impl QuadratureCounters for EmuCounters {
     fn read_raw(&mut self) -> [u16; 2] {
         // A 16-bit timer register shows the low 16 bits of the true count.
         self.0.borrow().encoder_counts().map(|c| c as u16)
+    }
+}
+
+/// Edge interrupts on the measuring wheels' A/B channels: every edge the plant produced, time
+/// stamped to the slave clock's microsecond, as an edge interrupt reading the clock would.
+pub struct EmuEdges(pub SharedPlant);
+
+impl EncoderEdges for EmuEdges {
+    fn levels(&mut self) -> [u8; 2] {
+        self.0
+            .borrow()
+            .encoder_counts()
+            .map(QuadratureDecoder::levels_at)
+    }
+
+    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> bool {
+        for (t, encoder, count) in self.0.borrow_mut().take_edges() {
+            f(EncoderEdge {
+                t_us: (t * 1e6).round() as u64,
+                encoder: encoder as u8,
+                levels: QuadratureDecoder::levels_at(count),
+            });
+        }
+        true
     }
 }
 

@@ -229,6 +229,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     sim.spawn(async {
         let slave = firmware_slave::run(
             EmuCounters(plant.clone()),
+            EmuEdges(plant.clone()),
             EmuAbsEncoder(plant.clone()),
             EmuSlaveSpi(wire.clone()),
             &slave_shared,
@@ -338,8 +339,8 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let slave_frame = slave_shared.frame();
     if slave_frame.status & protocol::spi::slave_status::ALGORITHM_UNSUPPORTED != 0 {
         bail!(
-            "the slave cannot run {:?}: this slave build counts encoders in hardware and has no tick \
-             time stamps; it kept running {:?}",
+            "the slave cannot run {:?} reading hardware counters only (it needs every tick's time \
+             stamp: --sensor timestamps); it kept running {:?}",
             opts.algorithm,
             slave_frame.algorithm
         );
