@@ -91,6 +91,9 @@ impl TickTracker {
             };
         };
         let since = t_ns.saturating_sub(last);
+        // Positive by construction; `max(1)` lets the compiler see it too, so no
+        // divide-by-zero panic path reaches the board.
+        let interval = interval.max(1);
         if interval >= 1 << 40 {
             // Over 18 minutes between two edges: a stopped wheel.
             return self.edge << 16;
