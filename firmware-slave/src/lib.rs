@@ -160,7 +160,9 @@ pub async fn odometry_task(
                     Quadrature::None => {}
                 }
             });
-            if !complete {
+            // The timers count the same edges in hardware: if the decoded count ever differs,
+            // an edge was lost (or invented) on the interrupt path.
+            if !complete || ticks.iter().zip(totals).any(|(t, c)| t.count() != c) {
                 status |= slave_status::EDGES_LOST;
             }
             Sample {

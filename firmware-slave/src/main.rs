@@ -20,24 +20,23 @@ mod firmware {
     /// it never ends, so it must outlive `main`'s stack frame.
     static SHARED: SlaveShared = SlaveShared::new();
 
+    /// Seed 004's sensors, every encoder edge time-stamped (EXTI, `board/exti.rs`); the timers
+    /// still count in hardware and the slave cross-checks the two. `SensorMode::Counts` here
+    /// falls back to the timers alone.
+    static CONFIG: SlaveConfig = SlaveConfig {
+        sensor: firmware_slave::SensorMode::TickTimestamps,
+        ..SlaveConfig::DEFAULT
+    };
+
     /// Runs the whole portable firmware; it never returns.
     #[embassy_executor::task]
     async fn odometry(
         counters: board::Counters,
+        edges: board::EdgeCapture,
         abs: board::AbsoluteEncoder,
         spi: board::SpiSlaveLink,
     ) -> ! {
-        // Hardware counters only for now: edge time stamps (EXTI on the encoder pins) are not
-        // wired on the board yet, so the slave runs in `SensorMode::Counts`.
-        firmware_slave::run(
-            counters,
-            firmware_slave::ports::NoEdges,
-            abs,
-            spi,
-            &SHARED,
-            &SlaveConfig::DEFAULT,
-        )
-        .await
+        firmware_slave::run(counters, edges, abs, spi, &SHARED, &CONFIG).await
     }
 
     #[embassy_executor::main]
@@ -51,6 +50,7 @@ mod firmware {
         spawner.spawn(defmt::unwrap!(bluepill::heartbeat(board.led)));
         spawner.spawn(defmt::unwrap!(odometry(
             board.counters,
+            board.edges,
             board.abs,
             board.spi
         )));

@@ -95,7 +95,8 @@ impl Plant {
 
     /// Quadrature counts each measuring-wheel encoder shows now (x4 decoding, ideal edges).
     pub fn encoder_counts(&self) -> [i64; 2] {
-        self.encoder_positions(&self.state).map(|p| p.floor() as i64)
+        self.encoder_positions(&self.state)
+            .map(|p| p.floor() as i64)
     }
 
     /// Each encoder's position in counts (fractional), relative to its power-on count.

@@ -6,27 +6,29 @@
 //! PB8..PB15 absolute encoder, PC13 LED. TIM4 is embassy's time driver.
 
 mod abs_encoder;
+mod exti;
 mod qei;
 mod spi_slave;
 
 use embassy_stm32::gpio::Output;
-use embassy_stm32::{bind_interrupts, dma, exti, interrupt, peripherals};
+use embassy_stm32::{bind_interrupts, dma, peripherals};
 // Linked for their side effects: the RTT transport behind `defmt` and the panic handler.
 use {defmt_rtt as _, panic_probe as _};
 
 pub use abs_encoder::AbsoluteEncoder;
+pub use exti::EdgeCapture;
 pub use qei::Counters;
 pub use spi_slave::SpiSlaveLink;
 
 bind_interrupts!(pub struct Irqs {
     DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
     DMA1_CHANNEL3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
-    EXTI4 => exti::InterruptHandler<interrupt::typelevel::EXTI4>;
 });
 
 /// Everything `main` hands to the tasks.
 pub struct Board {
     pub counters: Counters,
+    pub edges: EdgeCapture,
     pub abs: AbsoluteEncoder,
     pub spi: SpiSlaveLink,
     pub led: Output<'static>,
@@ -39,12 +41,16 @@ pub fn init() -> Board {
     let counters = Counters::new(p.TIM2, p.PA0, p.PA1, p.TIM1, p.PA8, p.PA9);
     let abs = AbsoluteEncoder::new(p.PB8, p.PB9, p.PB10, p.PB11, p.PB12, p.PB13, p.PB14, p.PB15);
     let spi = SpiSlaveLink::new(
-        p.SPI1, p.PA4, p.PA5, p.PA6, p.PA7, p.EXTI4, p.DMA1_CH3, p.DMA1_CH2, Irqs,
+        p.SPI1, p.PA4, p.PA5, p.PA6, p.PA7, p.DMA1_CH3, p.DMA1_CH2, Irqs,
     );
     let led = bluepill::status_led(p.PC13);
+    // After the timers and the SPI slave have set up PA0/1/4/8/9: route their edges.
+    exti::init();
+    let edges = EdgeCapture::new();
 
     Board {
         counters,
+        edges,
         abs,
         spi,
         led,

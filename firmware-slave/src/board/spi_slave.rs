@@ -13,7 +13,9 @@
 //!
 //! So this driver programs SPI1 (CR1/CR2/SR/DR) and its SCK/MISO/MOSI pins through the PAC, and
 //! uses embassy for the rest: the DMA channels (`dma::Channel` and its `Transfer` futures, which
-//! stop the channel when dropped) and the NSS edge (`ExtiInput`). On the F1 the NSS input of the
+//! stop the channel when dropped) and the NSS edge (the board's own EXTI4 handler in
+//! `board/exti.rs`: embassy's shared EXTI handler would disturb the encoder lines). On the F1 the
+//! NSS input of the
 //! SPI is just the pin read as an input, so PA4 serves both SPI1 (hardware NSS, SSM = 0) and
 //! EXTI4.
 //!
@@ -33,22 +35,23 @@
 use embassy_futures::join::join;
 use embassy_futures::select::{select, Either};
 use embassy_stm32::dma::{self, TransferOptions};
-use embassy_stm32::exti::ExtiInput;
-use embassy_stm32::gpio::Pull;
-use embassy_stm32::mode::Async;
+use embassy_stm32::gpio::{Input, Pull};
 use embassy_stm32::pac::gpio::vals::{CnfIn, CnfOut, Mode};
 use embassy_stm32::pac::spi::vals::{Bidimode, Cpha, Cpol, Dff, Lsbfirst, Mstr, Rxonly};
-use embassy_stm32::peripherals::{DMA1_CH2, DMA1_CH3, EXTI4, PA4, PA5, PA6, PA7, SPI1};
+use embassy_stm32::peripherals::{DMA1_CH2, DMA1_CH3, PA4, PA5, PA6, PA7, SPI1};
 use embassy_stm32::{pac, rcc, Peri};
 use firmware_slave::ports::{SpiSlave, SpiSlaveError};
 use protocol::spi::SPI_FRAME_LEN;
 
+use super::exti::Nss;
 use super::Irqs;
 
 /// SPI1 slave with DMA1 CH2 (RX) / CH3 (TX), framed by NSS on PA4.
 pub struct SpiSlaveLink {
     /// PA4: the SPI's hardware NSS and, through EXTI4, the end-of-transaction signal.
-    nss: ExtiInput<'static, Async>,
+    nss: Nss,
+    /// Keeps PA4 configured as an input with pull-up.
+    _nss_pin: Input<'static>,
     rx_dma: dma::Channel<'static>,
     tx_dma: dma::Channel<'static>,
     // Ownership only: nothing else may touch SPI1 or its pins while this driver exists.
@@ -66,7 +69,6 @@ impl SpiSlaveLink {
         sck: Peri<'static, PA5>,
         miso: Peri<'static, PA6>,
         mosi: Peri<'static, PA7>,
-        exti4: Peri<'static, EXTI4>,
         tx_dma: Peri<'static, DMA1_CH3>,
         rx_dma: Peri<'static, DMA1_CH2>,
         irqs: Irqs,
@@ -83,7 +85,7 @@ impl SpiSlaveLink {
 
         // A pull-up rather than a floating input: while the master resets or is unplugged its
         // PA4 floats, and the pull-up keeps this slave deselected instead of reacting to noise.
-        let nss = ExtiInput::new(nss, exti4, Pull::Up, irqs);
+        let nss_pin = Input::new(nss, Pull::Up);
 
         critical_section::with(|_| {
             let gpioa = pac::GPIOA;
@@ -103,7 +105,8 @@ impl SpiSlaveLink {
         configure_registers();
 
         Self {
-            nss,
+            nss: Nss::new(),
+            _nss_pin: nss_pin,
             rx_dma: dma::Channel::new(rx_dma, irqs),
             tx_dma: dma::Channel::new(tx_dma, irqs),
             _spi: spi,
