@@ -139,14 +139,26 @@ impl Estimator for Exact {
         wheels: &[TickTracker; MAX_ENCODERS],
         interpolate: bool,
     ) -> Pose2 {
-        let n = self.n;
-        let q: [i64; MAX_ENCODERS] = core::array::from_fn(|j| match (j < n, interpolate) {
-            (false, _) => 0,
-            (true, true) => wheels[j].position_q16(t_ns),
-            (true, false) => wheels[j].count() << 16,
-        });
-        self.odo.update_q16(&q).to_pose2()
+        self.odo
+            .update_q16(&positions_q16(wheels, self.n, t_ns, interpolate))
+            .to_pose2()
     }
+}
+
+/// What `exact` (and its f64 twin: the same inputs, so the comparison is of the arithmetic
+/// alone) sees of each wheel, in Q16 counts: interpolated between ticks with time stamps,
+/// whole counts otherwise; unused slots zero.
+fn positions_q16(
+    wheels: &[TickTracker; MAX_ENCODERS],
+    n: usize,
+    t_ns: u64,
+    interpolate: bool,
+) -> [i64; MAX_ENCODERS] {
+    core::array::from_fn(|j| match (j < n, interpolate) {
+        (false, _) => 0,
+        (true, true) => wheels[j].position_q16(t_ns),
+        (true, false) => wheels[j].count() << 16,
+    })
 }
 
 struct ExactF64 {
@@ -161,12 +173,8 @@ impl Estimator for ExactF64 {
         wheels: &[TickTracker; MAX_ENCODERS],
         interpolate: bool,
     ) -> Pose2 {
-        let c: [f64; MAX_ENCODERS] = core::array::from_fn(|j| match (j < self.n, interpolate) {
-            (false, _) => 0.0,
-            // The same Q16 positions the fixed-point version sees.
-            (true, true) => wheels[j].position_q16(t_ns) as f64 / 65536.0,
-            (true, false) => wheels[j].count() as f64,
-        });
+        let q = positions_q16(wheels, self.n, t_ns, interpolate);
+        let c = q.map(|v| v as f64 / 65536.0);
         self.odo.update(&c[..self.n])
     }
 }
