@@ -1,12 +1,10 @@
-//! omnibench's host side: the emulator (both boards' firmware against a simulated robot),
-//! the simulated robot itself, and reporting. The `host-bench` binary is the CLI over this.
+//! omnibench's host side. The folders are the parts of the bench:
+//! * [`formats`]: the files a user writes and reads (robot descriptions, tick streams);
+//! * [`sim`]: the simulated robot, trajectories, the tick generator and the two-board emulator;
+//! * [`eval`]: replay, the accuracy suite, reports and plots.
+//!
+//! The `host-bench` binary (`src/main.rs`, `src/cli/`) is the command line over these.
 
-pub mod accuracy;
-pub mod emulator;
-pub mod generate;
-pub mod plant;
-pub mod replay;
-pub mod report;
-pub mod robot;
-pub mod tickstream;
-pub mod trajectory;
+pub mod eval;
+pub mod formats;
+pub mod sim;

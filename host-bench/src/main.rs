@@ -3,9 +3,11 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+mod cli;
+
 use clap::{Parser, Subcommand};
-use host_bench::emulator::{self, Scenario};
-use host_bench::report;
+use host_bench::eval::report;
+use host_bench::sim::emulator::{self, Scenario};
 
 #[derive(Parser)]
 #[command(
@@ -159,7 +161,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             opts.faults.slave_off_at = fault_slave_off_at;
             opts.faults.host_silent_after = fault_host_silent_after;
             if let Some(n) = sweep {
-                return run_sweep(&scenario, &opts, n, json);
+                return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }
             let run = emulator::run(&scenario, &opts)?;
             if let Some(dir) = &out {
@@ -177,7 +179,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Accuracy { json, out } => run_accuracy(json, out),
+        Command::Accuracy { json, out } => cli::analyse::run_accuracy(json, out),
         Command::Generate {
             list,
             robot,
@@ -185,7 +187,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             truth_rate,
             abs_rate,
-        } => run_generate(list, robot, trajectory, out, truth_rate, abs_rate),
+        } => cli::analyse::run_generate(list, robot, trajectory, out, truth_rate, abs_rate),
         Command::Replay {
             robot,
             ticks,
@@ -193,278 +195,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             counts_rate,
             json,
-        } => run_replay(robot, ticks, algorithm, counts_rate, out, json),
+        } => cli::analyse::run_replay(robot, ticks, algorithm, counts_rate, out, json),
     }
-}
-
-fn run_accuracy(json: bool, out: Option<PathBuf>) -> anyhow::Result<()> {
-    use host_bench::accuracy;
-    let total = (accuracy::cases().len() * accuracy::modes().len()) as u64;
-    // indicatif draws only when stderr is a terminal: CI logs stay clean.
-    let bar = indicatif::ProgressBar::new(total).with_style(
-        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    let results = accuracy::run(|label| {
-        bar.set_message(label.to_string());
-        bar.inc(1);
-    })?;
-    bar.finish_and_clear();
-    if let Some(dir) = &out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
-        for r in &results {
-            let mode = r.mode.replace('@', "-");
-            for s in &r.algorithms {
-                s.write_track(&dir.join(format!("{}-{}-{mode}-{}.csv", r.case, r.robot, s.name)))?;
-            }
-            let title = format!("{} on {} ({}): paths and error", r.case, r.robot, r.mode);
-            host_bench::report::write_case_svg(
-                &dir.join(format!("{}-{}-{mode}.svg", r.case, r.robot)),
-                &title,
-                &r.algorithms,
-            )?;
-        }
-    }
-    if json {
-        println!("{}", serde_json::json!({ "cases": results }));
-    } else {
-        print!("{}", accuracy::table(&results));
-    }
-    Ok(())
-}
-
-fn run_generate(
-    list: bool,
-    robot: Option<PathBuf>,
-    trajectory: Option<String>,
-    out: Option<PathBuf>,
-    truth_rate_hz: f64,
-    abs_rate_hz: f64,
-) -> anyhow::Result<()> {
-    use host_bench::{generate, robot::Robot, tickstream, trajectory as traj};
-    if list {
-        for t in traj::catalogue() {
-            let drive = match t.drive {
-                traj::Drive::Differential => "any robot",
-                traj::Drive::Holonomic => "omni robots",
-            };
-            println!(
-                "{:<24} {:<10} {:<11} {}",
-                t.name, t.paper, drive, t.description
-            );
-        }
-        return Ok(());
-    }
-    // clap guarantees these without --list.
-    let (Some(robot_path), Some(name), Some(out)) = (robot, trajectory, out) else {
-        anyhow::bail!("--robot, --trajectory and --out are required");
-    };
-    for (flag, v) in [("--truth-rate", truth_rate_hz), ("--abs-rate", abs_rate_hz)] {
-        anyhow::ensure!(
-            v.is_finite() && v > 0.0,
-            "{flag} must be a positive number of Hz, got {v}"
-        );
-    }
-    let robot = Robot::load(&robot_path)?;
-    let named = traj::named(&name).ok_or_else(|| {
-        anyhow::anyhow!("unknown trajectory {name:?}; `host-bench generate --list` names them")
-    })?;
-    generate::check_drive(&robot, named.drive)?;
-    let t = traj::build(&name)
-        .ok_or_else(|| anyhow::anyhow!("trajectory {name:?} could not be built"))?;
-    // The stream names its robot relative to where the stream is written.
-    let header = relative_path(
-        &robot_path,
-        out.parent().unwrap_or(std::path::Path::new(".")),
-    );
-    let stream = generate::generate(
-        &robot,
-        header.as_deref(),
-        t.as_ref(),
-        &generate::GenerateOptions {
-            truth_rate_hz,
-            abs_rate_hz,
-        },
-    )?;
-    tickstream::write(&out, &stream)?;
-    let ticks = stream
-        .events
-        .iter()
-        .filter(|e| matches!(e, tickstream::Event::Tick { .. }))
-        .count();
-    eprintln!(
-        "wrote {} ({} events, {} ticks, {:.3} s of {})",
-        out.display(),
-        stream.events.len(),
-        ticks,
-        t.duration(),
-        name
-    );
-    Ok(())
-}
-
-/// `target` relative to the directory `from`, when both resolve (for the `# robot:` line).
-fn relative_path(target: &std::path::Path, from: &std::path::Path) -> Option<String> {
-    let target = std::fs::canonicalize(target).ok()?;
-    let from = std::fs::canonicalize(if from.as_os_str().is_empty() {
-        std::path::Path::new(".")
-    } else {
-        from
-    })
-    .ok()?;
-    let common = target
-        .components()
-        .zip(from.components())
-        .take_while(|(a, b)| a == b)
-        .count();
-    let mut rel = std::path::PathBuf::new();
-    for _ in from.components().skip(common) {
-        rel.push("..");
-    }
-    for c in target.components().skip(common) {
-        rel.push(c);
-    }
-    rel.to_str().map(str::to_owned)
-}
-
-fn run_replay(
-    robot: Option<PathBuf>,
-    ticks: PathBuf,
-    algorithm: String,
-    counts_rate: Option<f64>,
-    out: Option<PathBuf>,
-    json: bool,
-) -> anyhow::Result<()> {
-    use host_bench::{replay, robot::Robot, tickstream};
-    let mode = counts_rate.map_or(replay::Mode::Timestamps, |rate_hz| replay::Mode::Counts {
-        rate_hz,
-    });
-    let stream = tickstream::read(&ticks)?;
-    let robot_path = match robot {
-        Some(p) => p,
-        None => stream.robot_path(&ticks).ok_or_else(|| {
-            anyhow::anyhow!(
-                "{}: no `# robot:` line; name the robot with --robot FILE",
-                ticks.display()
-            )
-        })?,
-    };
-    let robot = Robot::load(&robot_path)?;
-    let names: Vec<&str> = if algorithm == "all" {
-        replay::ALGORITHMS.to_vec()
-    } else {
-        vec![algorithm.as_str()]
-    };
-    // A named algorithm must run; with `all`, the ones that cannot apply to this robot or
-    // mode (e.g. `timing` on sampled counts) are skipped with the reason.
-    let mut scores = Vec::new();
-    let mut skipped = Vec::new();
-    for name in &names {
-        match replay::replay(&robot, &stream, name, mode) {
-            Ok(s) => scores.push(s),
-            Err(e) if algorithm == "all" => {
-                skipped.push(serde_json::json!({"name": name, "reason": format!("{e:#}")}))
-            }
-            Err(e) => return Err(e),
-        }
-    }
-    if let Some(dir) = &out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
-        for s in &scores {
-            s.write_track(&dir.join(format!("{}.csv", s.name)))?;
-        }
-    }
-    if json {
-        println!(
-            "{}",
-            serde_json::json!({ "mode": mode.to_string(), "algorithms": scores, "skipped": skipped })
-        );
-    } else {
-        println!(
-            "{} on {} ({} events), encoders read as {mode}",
-            ticks.display(),
-            robot.name,
-            stream.events.len()
-        );
-        for s in &scores {
-            println!(
-                "{:<8} final error {:9.4} mm, max {:9.4} mm, final heading error {:+.5} deg, path {:.3} m",
-                s.name,
-                s.final_error_m * 1e3,
-                s.max_error_m * 1e3,
-                s.final_heading_error_rad.to_degrees(),
-                s.path_length_m
-            );
-        }
-        for k in &skipped {
-            println!(
-                "{:<8} skipped: {}",
-                k["name"].as_str().unwrap_or(""),
-                k["reason"].as_str().unwrap_or("")
-            );
-        }
-    }
-    Ok(())
-}
-
-fn run_sweep(
-    scenario: &Scenario,
-    opts: &emulator::Options,
-    n: u32,
-    json: bool,
-) -> anyhow::Result<()> {
-    anyhow::ensure!(n > 0, "--sweep needs at least one run");
-    let mut summaries = Vec::new();
-    for k in 0..n as u64 {
-        let mut o = opts.clone();
-        o.seed = opts.seed + k;
-        let s = emulator::run(scenario, &o)?.summary;
-        if !json {
-            println!(
-                "seed {:>4}: final error {:7.3} mm, max {:7.3} mm, heading {:+7.3} deg, {:5.1} mm from goal, rejected frames {}",
-                s.seed,
-                s.final_error_m * 1e3,
-                s.max_error_m * 1e3,
-                s.final_heading_error_rad.to_degrees(),
-                s.distance_to_goal_m * 1e3,
-                s.spi_frames_rejected + s.serial_frames_rejected
-            );
-        }
-        summaries.push(s);
-    }
-    let stat = |f: fn(&emulator::Summary) -> f64| {
-        let mut v: Vec<f64> = summaries.iter().map(f).collect();
-        v.sort_by(f64::total_cmp);
-        (v[0], v[v.len() / 2], v[v.len() - 1])
-    };
-    let fe = stat(|s| s.final_error_m);
-    let me = stat(|s| s.max_error_m);
-    let he = stat(|s| s.final_heading_error_rad.abs());
-    if json {
-        let spread = |(min, median, max): (f64, f64, f64)| serde_json::json!({"min": min, "median": median, "max": max});
-        println!(
-            "{}",
-            serde_json::json!({
-                "scenario": scenario.name,
-                "runs": summaries,
-                "final_error_m": spread(fe),
-                "max_error_m": spread(me),
-                "abs_final_heading_error_rad": spread(he),
-            })
-        );
-    } else {
-        println!(
-            "{} runs of {}: final error min {:.3} / median {:.3} / max {:.3} mm; max error up to {:.3} mm; |heading error| up to {:.3} deg",
-            n,
-            scenario.name,
-            fe.0 * 1e3,
-            fe.1 * 1e3,
-            fe.2 * 1e3,
-            me.2 * 1e3,
-            he.2.to_degrees()
-        );
-    }
-    Ok(())
 }

@@ -6,10 +6,12 @@ use std::f64::consts::{PI, TAU};
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use host_bench::generate::{abs_code, check_drive, generate, is_differential, GenerateOptions};
-use host_bench::robot::{AbsMeasures, Robot};
-use host_bench::tickstream::{self, Event, TickStream};
-use host_bench::trajectory::{self, build, catalogue, Drive, Trajectory};
+use host_bench::formats::robot::{AbsMeasures, Robot};
+use host_bench::formats::tickstream::{self, Event, TickStream};
+use host_bench::sim::generate::{
+    abs_code, check_drive, generate, is_differential, GenerateOptions,
+};
+use host_bench::sim::trajectory::{self, build, catalogue, Drive, Trajectory};
 use robot_math::carriage::CarriageOdometry;
 use robot_math::se2::{wrap_angle, Pose2, Twist};
 

@@ -4,7 +4,7 @@
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
-use host_bench::robot::{AbsMeasures, Robot, RobotError};
+use host_bench::formats::robot::{AbsMeasures, Robot, RobotError};
 use robot_math::carriage::CarriageGeometry;
 use robot_math::omni3::Omni3;
 use robot_math::wheel::Wheel;

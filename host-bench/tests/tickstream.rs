@@ -5,7 +5,7 @@ use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use host_bench::tickstream::{self, Event, ReadError, TickStream, MAGIC};
+use host_bench::formats::tickstream::{self, Event, ReadError, TickStream, MAGIC};
 
 const HEADER: &str = "t_ns,kind,id,value,x_m,y_m,theta_rad";
 
@@ -376,7 +376,7 @@ fn reads_the_documented_python_example() {
     assert!(x.abs() < 0.002 && y.abs() < 1e-5 && (theta - 15.7 * 0.4).abs() < 1e-9);
     assert!(s.events.windows(2).all(|w| w[0].t_ns() <= w[1].t_ns()));
     // The robot file it names (also in the doc) loads, and its encoders are the ones counted.
-    let robot = host_bench::robot::Robot::load(&s.robot_path(&path).unwrap())
+    let robot = host_bench::formats::robot::Robot::load(&s.robot_path(&path).unwrap())
         .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(robot.encoders.len(), 2);
     assert_eq!(robot.encoders[0].name, "left");

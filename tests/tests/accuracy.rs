@@ -3,9 +3,9 @@
 
 use std::sync::OnceLock;
 
-use host_bench::accuracy::{self, CaseResult};
-use host_bench::replay::Score;
-use host_bench::trajectory;
+use host_bench::eval::accuracy::{self, CaseResult};
+use host_bench::eval::replay::Score;
+use host_bench::sim::trajectory;
 
 fn results() -> &'static [CaseResult] {
     static R: OnceLock<Vec<CaseResult>> = OnceLock::new();
@@ -87,7 +87,7 @@ fn sampled_counts_stay_within_the_quantisation_bound() {
     // Whole counts lag each wheel by less than one count: heading then errs by at most the sum
     // of the wheels' per-count turns (hq), and position by the per-count displacement (dq) plus
     // the path times hq. A loose but true bound; the table shows how far inside it runs are.
-    use host_bench::robot::Robot;
+    use host_bench::formats::robot::Robot;
     use robot_math::wheelset::WheelSolver;
     for c in results().iter().filter(|c| c.mode != "timestamps") {
         let file = if c.robot == "seed001" {

@@ -7,7 +7,7 @@
 //! half a step of the 8-bit absolute encoder (the slave reads body heading through it) plus
 //! the carriage heading's count quantisation.
 
-use host_bench::emulator::{self, Options, Run, Scenario};
+use host_bench::sim::emulator::{self, Options, Run, Scenario};
 
 /// Slave odometry vs ground truth at the end of the default scenario.
 const FINAL_ERROR_BOUND_M: f64 = 0.001;

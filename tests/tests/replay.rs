@@ -5,7 +5,8 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use host_bench::{replay, robot::Robot, tickstream};
+use host_bench::eval::replay;
+use host_bench::formats::{robot::Robot, tickstream};
 
 fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -25,8 +25,8 @@ use robot_math::wheelset::WheelSolver;
 use robot_math::Pose2;
 use serde::Serialize;
 
-use crate::robot::Robot;
-use crate::tickstream::{Event, TickStream};
+use crate::formats::robot::Robot;
+use crate::formats::tickstream::{Event, TickStream};
 
 /// The estimators `replay` knows, in report order.
 pub const ALGORITHMS: &[&str] = &["arc", "lut", "timing", "exact"];

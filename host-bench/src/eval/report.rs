@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
-use crate::emulator::{LogRow, Run, Summary};
+use crate::sim::emulator::{LogRow, Run, Summary};
 
 /// The short summary `emulate` prints.
 pub fn summary_text(s: &Summary) -> String {
@@ -247,7 +247,11 @@ where
 /// One SVG for an accuracy case: the true path and each method's path on top, and each
 /// method's position error against distance travelled below (log scale: the methods differ
 /// by orders of magnitude).
-pub fn write_case_svg(path: &Path, title: &str, scores: &[crate::replay::Score]) -> Result<()> {
+pub fn write_case_svg(
+    path: &Path,
+    title: &str,
+    scores: &[crate::eval::replay::Score],
+) -> Result<()> {
     write_atomically(path, |tmp| case_svg(tmp, title, scores))
 }
 
@@ -258,7 +262,7 @@ const METHOD_COLORS: [RGBColor; 4] = [
     RGBColor(220, 40, 40),
 ];
 
-fn case_svg(path: &Path, title: &str, scores: &[crate::replay::Score]) -> Result<()> {
+fn case_svg(path: &Path, title: &str, scores: &[crate::eval::replay::Score]) -> Result<()> {
     let Some(first) = scores.first() else {
         anyhow::bail!("no method ran on {title}");
     };

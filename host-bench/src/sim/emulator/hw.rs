@@ -21,7 +21,7 @@ use protocol::spi::SPI_FRAME_LEN;
 use robot_math::sensors::binary_to_gray;
 use robot_math::sensors::QuadratureDecoder;
 
-use crate::plant::Plant;
+use crate::sim::plant::Plant;
 
 pub type SharedPlant = Rc<RefCell<Plant>>;
 

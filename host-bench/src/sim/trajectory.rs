@@ -3,7 +3,7 @@
 //!
 //! A [`Trajectory`] gives the pose and the body twist at every instant of `[0, duration]`,
 //! consistently (the twist is the exact derivative of the pose, heading included), so that the
-//! tick generator ([`crate::generate`]) can integrate each wheel's rolling speed and find its
+//! tick generator ([`crate::sim::generate`]) can integrate each wheel's rolling speed and find its
 //! ticks by root finding.
 //!
 //! How the motions are built:

@@ -2,7 +2,7 @@
 //! by side, with the paper's reported figure beside each case (SPEC §5, §6).
 //!
 //! Each case generates the exact tick stream of a seed robot along a seed trajectory
-//! ([`crate::generate`]) in memory and replays it ([`crate::replay`]) with ideal encoders, in
+//! ([`crate::sim::generate`]) in memory and replays it ([`crate::eval::replay`]) with ideal encoders, in
 //! tick-timestamp mode and as counters sampled at 1 kHz and 10 kHz. The robot files are built
 //! into the binary, so the command runs from anywhere.
 
@@ -11,10 +11,10 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use crate::generate::{generate, GenerateOptions};
-use crate::replay::{self, Mode, Score};
-use crate::robot::Robot;
-use crate::trajectory;
+use crate::eval::replay::{self, Mode, Score};
+use crate::formats::robot::Robot;
+use crate::sim::generate::{generate, GenerateOptions};
+use crate::sim::trajectory;
 
 /// A seed case: a trajectory, the robot that drives it, and what the paper reports.
 #[derive(Clone, Copy, Debug)]
@@ -97,10 +97,10 @@ pub fn modes() -> [Mode; 3] {
 
 fn robot_text(file: &str) -> Option<&'static str> {
     Some(match file {
-        "seed000-0.1mm.toml" => include_str!("../../robots/seed000-0.1mm.toml"),
-        "seed000-0.4mm.toml" => include_str!("../../robots/seed000-0.4mm.toml"),
-        "seed000-0.8mm.toml" => include_str!("../../robots/seed000-0.8mm.toml"),
-        "seed001.toml" => include_str!("../../robots/seed001.toml"),
+        "seed000-0.1mm.toml" => include_str!("../../../robots/seed000-0.1mm.toml"),
+        "seed000-0.4mm.toml" => include_str!("../../../robots/seed000-0.4mm.toml"),
+        "seed000-0.8mm.toml" => include_str!("../../../robots/seed000-0.8mm.toml"),
+        "seed001.toml" => include_str!("../../../robots/seed001.toml"),
         _ => return None,
     })
 }

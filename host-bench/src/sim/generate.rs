@@ -47,9 +47,9 @@
 
 use anyhow::bail;
 
-use crate::robot::{AbsMeasures, AbsoluteEncoder, Robot};
-use crate::tickstream::{Event, TickStream};
-use crate::trajectory::{gl5, Drive, Trajectory};
+use crate::formats::robot::{AbsMeasures, AbsoluteEncoder, Robot};
+use crate::formats::tickstream::{Event, TickStream};
+use crate::sim::trajectory::{gl5, Drive, Trajectory};
 use robot_math::wheel::Wheel;
 
 /// Longest integration interval, seconds.

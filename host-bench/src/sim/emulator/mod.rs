@@ -30,7 +30,7 @@ use robot_math::Pose2;
 use serde::Serialize;
 use virtual_time::Simulation;
 
-use crate::plant::{Plant, PlantConfig};
+use crate::sim::plant::{Plant, PlantConfig};
 use hw::*;
 
 /// A run to emulate: where the robot starts and what the host asks of it.

@@ -1,0 +1,217 @@
+//! The analysis commands: `accuracy`, `generate`, `replay`.
+
+use std::path::PathBuf;
+
+pub fn run_accuracy(json: bool, out: Option<PathBuf>) -> anyhow::Result<()> {
+    use host_bench::eval::accuracy;
+    let total = (accuracy::cases().len() * accuracy::modes().len()) as u64;
+    // indicatif draws only when stderr is a terminal: CI logs stay clean.
+    let bar = indicatif::ProgressBar::new(total).with_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let results = accuracy::run(|label| {
+        bar.set_message(label.to_string());
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    if let Some(dir) = &out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        for r in &results {
+            let mode = r.mode.replace('@', "-");
+            for s in &r.algorithms {
+                s.write_track(&dir.join(format!("{}-{}-{mode}-{}.csv", r.case, r.robot, s.name)))?;
+            }
+            let title = format!("{} on {} ({}): paths and error", r.case, r.robot, r.mode);
+            host_bench::eval::report::write_case_svg(
+                &dir.join(format!("{}-{}-{mode}.svg", r.case, r.robot)),
+                &title,
+                &r.algorithms,
+            )?;
+        }
+    }
+    if json {
+        println!("{}", serde_json::json!({ "cases": results }));
+    } else {
+        print!("{}", accuracy::table(&results));
+    }
+    Ok(())
+}
+
+pub fn run_generate(
+    list: bool,
+    robot: Option<PathBuf>,
+    trajectory: Option<String>,
+    out: Option<PathBuf>,
+    truth_rate_hz: f64,
+    abs_rate_hz: f64,
+) -> anyhow::Result<()> {
+    use host_bench::formats::{robot::Robot, tickstream};
+    use host_bench::sim::{generate, trajectory as traj};
+    if list {
+        for t in traj::catalogue() {
+            let drive = match t.drive {
+                traj::Drive::Differential => "any robot",
+                traj::Drive::Holonomic => "omni robots",
+            };
+            println!(
+                "{:<24} {:<10} {:<11} {}",
+                t.name, t.paper, drive, t.description
+            );
+        }
+        return Ok(());
+    }
+    // clap guarantees these without --list.
+    let (Some(robot_path), Some(name), Some(out)) = (robot, trajectory, out) else {
+        anyhow::bail!("--robot, --trajectory and --out are required");
+    };
+    for (flag, v) in [("--truth-rate", truth_rate_hz), ("--abs-rate", abs_rate_hz)] {
+        anyhow::ensure!(
+            v.is_finite() && v > 0.0,
+            "{flag} must be a positive number of Hz, got {v}"
+        );
+    }
+    let robot = Robot::load(&robot_path)?;
+    let named = traj::named(&name).ok_or_else(|| {
+        anyhow::anyhow!("unknown trajectory {name:?}; `host-bench generate --list` names them")
+    })?;
+    generate::check_drive(&robot, named.drive)?;
+    let t = traj::build(&name)
+        .ok_or_else(|| anyhow::anyhow!("trajectory {name:?} could not be built"))?;
+    // The stream names its robot relative to where the stream is written.
+    let header = relative_path(
+        &robot_path,
+        out.parent().unwrap_or(std::path::Path::new(".")),
+    );
+    let stream = generate::generate(
+        &robot,
+        header.as_deref(),
+        t.as_ref(),
+        &generate::GenerateOptions {
+            truth_rate_hz,
+            abs_rate_hz,
+        },
+    )?;
+    tickstream::write(&out, &stream)?;
+    let ticks = stream
+        .events
+        .iter()
+        .filter(|e| matches!(e, tickstream::Event::Tick { .. }))
+        .count();
+    eprintln!(
+        "wrote {} ({} events, {} ticks, {:.3} s of {})",
+        out.display(),
+        stream.events.len(),
+        ticks,
+        t.duration(),
+        name
+    );
+    Ok(())
+}
+
+/// `target` relative to the directory `from`, when both resolve (for the `# robot:` line).
+fn relative_path(target: &std::path::Path, from: &std::path::Path) -> Option<String> {
+    let target = std::fs::canonicalize(target).ok()?;
+    let from = std::fs::canonicalize(if from.as_os_str().is_empty() {
+        std::path::Path::new(".")
+    } else {
+        from
+    })
+    .ok()?;
+    let common = target
+        .components()
+        .zip(from.components())
+        .take_while(|(a, b)| a == b)
+        .count();
+    let mut rel = std::path::PathBuf::new();
+    for _ in from.components().skip(common) {
+        rel.push("..");
+    }
+    for c in target.components().skip(common) {
+        rel.push(c);
+    }
+    rel.to_str().map(str::to_owned)
+}
+
+pub fn run_replay(
+    robot: Option<PathBuf>,
+    ticks: PathBuf,
+    algorithm: String,
+    counts_rate: Option<f64>,
+    out: Option<PathBuf>,
+    json: bool,
+) -> anyhow::Result<()> {
+    use host_bench::eval::replay;
+    use host_bench::formats::{robot::Robot, tickstream};
+    let mode = counts_rate.map_or(replay::Mode::Timestamps, |rate_hz| replay::Mode::Counts {
+        rate_hz,
+    });
+    let stream = tickstream::read(&ticks)?;
+    let robot_path = match robot {
+        Some(p) => p,
+        None => stream.robot_path(&ticks).ok_or_else(|| {
+            anyhow::anyhow!(
+                "{}: no `# robot:` line; name the robot with --robot FILE",
+                ticks.display()
+            )
+        })?,
+    };
+    let robot = Robot::load(&robot_path)?;
+    let names: Vec<&str> = if algorithm == "all" {
+        replay::ALGORITHMS.to_vec()
+    } else {
+        vec![algorithm.as_str()]
+    };
+    // A named algorithm must run; with `all`, the ones that cannot apply to this robot or
+    // mode (e.g. `timing` on sampled counts) are skipped with the reason.
+    let mut scores = Vec::new();
+    let mut skipped = Vec::new();
+    for name in &names {
+        match replay::replay(&robot, &stream, name, mode) {
+            Ok(s) => scores.push(s),
+            Err(e) if algorithm == "all" => {
+                skipped.push(serde_json::json!({"name": name, "reason": format!("{e:#}")}))
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    if let Some(dir) = &out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        for s in &scores {
+            s.write_track(&dir.join(format!("{}.csv", s.name)))?;
+        }
+    }
+    if json {
+        println!(
+            "{}",
+            serde_json::json!({ "mode": mode.to_string(), "algorithms": scores, "skipped": skipped })
+        );
+    } else {
+        println!(
+            "{} on {} ({} events), encoders read as {mode}",
+            ticks.display(),
+            robot.name,
+            stream.events.len()
+        );
+        for s in &scores {
+            println!(
+                "{:<8} final error {:9.4} mm, max {:9.4} mm, final heading error {:+.5} deg, path {:.3} m",
+                s.name,
+                s.final_error_m * 1e3,
+                s.max_error_m * 1e3,
+                s.final_heading_error_rad.to_degrees(),
+                s.path_length_m
+            );
+        }
+        for k in &skipped {
+            println!(
+                "{:<8} skipped: {}",
+                k["name"].as_str().unwrap_or(""),
+                k["reason"].as_str().unwrap_or("")
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,4 @@
+//! The subcommands' bodies; `main.rs` holds the argument definitions.
+
+pub mod analyse;
+pub mod sweep;

@@ -1,0 +1,63 @@
+//! `emulate`'s sweep mode: N runs with consecutive seeds and the spread of their errors.
+
+use host_bench::sim::emulator::{self, Scenario};
+
+pub fn run_sweep(
+    scenario: &Scenario,
+    opts: &emulator::Options,
+    n: u32,
+    json: bool,
+) -> anyhow::Result<()> {
+    anyhow::ensure!(n > 0, "--sweep needs at least one run");
+    let mut summaries = Vec::new();
+    for k in 0..n as u64 {
+        let mut o = opts.clone();
+        o.seed = opts.seed + k;
+        let s = emulator::run(scenario, &o)?.summary;
+        if !json {
+            println!(
+                "seed {:>4}: final error {:7.3} mm, max {:7.3} mm, heading {:+7.3} deg, {:5.1} mm from goal, rejected frames {}",
+                s.seed,
+                s.final_error_m * 1e3,
+                s.max_error_m * 1e3,
+                s.final_heading_error_rad.to_degrees(),
+                s.distance_to_goal_m * 1e3,
+                s.spi_frames_rejected + s.serial_frames_rejected
+            );
+        }
+        summaries.push(s);
+    }
+    let stat = |f: fn(&emulator::Summary) -> f64| {
+        let mut v: Vec<f64> = summaries.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        (v[0], v[v.len() / 2], v[v.len() - 1])
+    };
+    let fe = stat(|s| s.final_error_m);
+    let me = stat(|s| s.max_error_m);
+    let he = stat(|s| s.final_heading_error_rad.abs());
+    if json {
+        let spread = |(min, median, max): (f64, f64, f64)| serde_json::json!({"min": min, "median": median, "max": max});
+        println!(
+            "{}",
+            serde_json::json!({
+                "scenario": scenario.name,
+                "runs": summaries,
+                "final_error_m": spread(fe),
+                "max_error_m": spread(me),
+                "abs_final_heading_error_rad": spread(he),
+            })
+        );
+    } else {
+        println!(
+            "{} runs of {}: final error min {:.3} / median {:.3} / max {:.3} mm; max error up to {:.3} mm; |heading error| up to {:.3} deg",
+            n,
+            scenario.name,
+            fe.0 * 1e3,
+            fe.1 * 1e3,
+            fe.2 * 1e3,
+            me.2 * 1e3,
+            he.2.to_degrees()
+        );
+    }
+    Ok(())
+}

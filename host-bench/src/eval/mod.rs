@@ -1,0 +1,6 @@
+//! Evaluation: odometry replayed over tick streams and scored against truth, the side-by-side
+//! accuracy suite over every seed case, and the reports and plots.
+
+pub mod accuracy;
+pub mod replay;
+pub mod report;

@@ -1,0 +1,6 @@
+//! The bench's files: robot descriptions (`docs/robot-format.md`) and tick streams
+//! (`docs/tick-stream.md`), each read strictly (every error names its line) and written
+//! atomically.
+
+pub mod robot;
+pub mod tickstream;
