@@ -1,10 +1,12 @@
 //! omnibench's host side. The folders are the parts of the bench:
 //! * [`formats`]: the files a user writes and reads (robot descriptions, tick streams);
 //! * [`sim`]: the simulated robot, trajectories, the tick generator and the two-board emulator;
-//! * [`eval`]: replay, the accuracy suite, reports and plots.
+//! * [`eval`]: replay, the accuracy suite, reports and plots;
+//! * [`boards`]: the real boards: their probes and serial ports, bench.toml, flashing.
 //!
 //! The `host-bench` binary (`src/main.rs`, `src/cli/`) is the command line over these.
 
+pub mod boards;
 pub mod eval;
 pub mod formats;
 pub mod sim;

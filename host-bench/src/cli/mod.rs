@@ -1,4 +1,5 @@
 //! The subcommands' bodies; `main.rs` holds the argument definitions.
 
 pub mod analyse;
+pub mod flash;
 pub mod sweep;
