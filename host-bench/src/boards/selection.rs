@@ -305,8 +305,12 @@ pub fn assign(
             }
         }
     }
-    let unchosen = chosen.iter().filter(|(_, p)| p.is_none()).count();
-    if unchosen > 0 {
+    let unchosen: Vec<Board> = chosen
+        .iter()
+        .filter(|(_, p)| p.is_none())
+        .map(|(b, _)| *b)
+        .collect();
+    if let Some(&first_unchosen) = unchosen.first() {
         let left: Vec<&ProbeListItem> = attached
             .iter()
             .filter(|item| {
@@ -315,27 +319,27 @@ pub fn assign(
                     .any(|(_, p)| p.as_ref().is_some_and(|p| p.info == item.info))
             })
             .collect();
-        let first_unchosen = chosen
-            .iter()
-            .find(|(_, p)| p.is_none())
-            .map(|(b, _)| *b)
-            .unwrap_or(Board::Slave);
-        if left.len() > unchosen || (unchosen > 1 && left.len() == unchosen) {
-            // Several boards without a selector: which probe is which board's cannot be
-            // known from the USB side.
-            return Err(SelectError::Ambiguous {
-                board: first_unchosen,
-                attached: attached.to_vec(),
-            });
-        }
-        if left.len() < unchosen {
-            return Err(SelectError::TooFewProbes {
-                wanted: wanted.len(),
-                attached: attached.to_vec(),
-            });
-        }
-        for (_, probe) in chosen.iter_mut().filter(|(_, p)| p.is_none()) {
-            *probe = Some(left[0].clone());
+        match (unchosen.len(), left.as_slice()) {
+            // Exactly one board and one probe left: that probe can only be this board's.
+            (1, [only]) => {
+                for (_, probe) in chosen.iter_mut().filter(|(_, p)| p.is_none()) {
+                    *probe = Some((*only).clone());
+                }
+            }
+            (n, left) if left.len() < n => {
+                return Err(SelectError::TooFewProbes {
+                    wanted: wanted.len(),
+                    attached: attached.to_vec(),
+                })
+            }
+            // More candidates than one board, or two boards and two probes: which probe is
+            // wired to which board cannot be known from the USB side.
+            _ => {
+                return Err(SelectError::Ambiguous {
+                    board: first_unchosen,
+                    attached: attached.to_vec(),
+                })
+            }
         }
     }
     let mut out = Vec::new();
