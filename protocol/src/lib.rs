@@ -13,6 +13,7 @@
 //! headings as binary angles (2^32 = one turn, so they wrap for free).
 #![cfg_attr(not(test), no_std)]
 
+pub mod events;
 pub mod link;
 pub mod serial;
 pub mod spi;
