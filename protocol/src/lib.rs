@@ -13,6 +13,8 @@
 //! headings as binary angles (2^32 = one turn, so they wrap for free).
 #![cfg_attr(not(test), no_std)]
 
+pub mod events;
+pub mod link;
 pub mod serial;
 pub mod spi;
 mod units;
