@@ -13,16 +13,19 @@
 //! headings as binary angles (2^32 = one turn, so they wrap for free).
 #![cfg_attr(not(test), no_std)]
 
+mod bytes;
 pub mod events;
 pub mod link;
+pub mod robot;
 pub mod serial;
 pub mod spi;
 mod units;
 
+pub use bytes::Bytes;
 pub use units::{metres_to_um, BinaryAngle, Point, Pose};
 
 /// Version of the wire protocol described by this crate. Bumped on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// A CRC-32 over the postcard schemas of every message type in this crate.
 ///
@@ -37,6 +40,7 @@ pub fn schema_fingerprint() -> u32 {
         serial::MasterToHost::SCHEMA,
         spi::MasterFrame::SCHEMA,
         spi::SlaveFrame::SCHEMA,
+        spi::Report::SCHEMA,
     ] {
         // A flavor that feeds the digest directly: no buffer, works the same on the firmware.
         let flavor = DigestFlavor(&mut digest);

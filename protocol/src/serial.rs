@@ -5,6 +5,8 @@
 //! (or loses bytes) resynchronises at the next zero; the CRC catches everything else. A frame
 //! that fails any check is counted by the receiver and dropped, never acted on.
 
+use crate::spi::{OdometryAlgorithm, SensorSource, SlaveCommand};
+use crate::link::{Ack, DataFrame};
 use crate::{BinaryAngle, Point, Pose};
 use postcard::experimental::max_size::MaxSize;
 use postcard_schema::Schema;
@@ -18,7 +20,7 @@ pub const MAX_FRAME: usize = cobs::max_encoding_length(MAX_PAYLOAD + 4) + 1;
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// What the host asks of the master.
-#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum HostToMaster {
     /// Start of a session. The master answers with [`MasterToHost::HelloReply`].
@@ -34,6 +36,35 @@ pub enum HostToMaster {
     SetOdometry(crate::spi::OdometryAlgorithm),
     /// "Still here". The master stops the motors when the host is silent for too long.
     Heartbeat,
+    /// Queue a command for the slave (robot upload, sensor source); acknowledged by the slave
+    /// in order, refused with `Rejected(Busy)` when the master's queue is full.
+    Slave(SlaveCommand),
+    /// A piece of the played event stream, for the slave (go-back-N, see [`crate::link`]).
+    Events(DataFrame),
+    /// Acknowledges the master's report stream.
+    ReportsAck(Ack),
+}
+
+/// What the master says about itself and its slave at the handshake.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BoardInfo {
+    pub protocol_version: u16,
+    /// [`crate::schema_fingerprint`] of the master's build.
+    pub schema_fingerprint: u32,
+    /// The master firmware's version (major, minor, patch).
+    pub firmware_version: [u8; 3],
+    /// The master chip's 96-bit unique ID (STM32F1: 0x1FFFF7E8).
+    pub master_uid: [u8; 12],
+    /// Whether a valid slave frame has been seen; the fields below are the slave's.
+    pub slave_seen: bool,
+    /// Fingerprint of the robot the slave runs.
+    pub robot: u32,
+    pub source: SensorSource,
+    pub period_us: u32,
+    pub algorithm: OdometryAlgorithm,
+    /// The serial link's baud rate as the master runs it.
+    pub baud: u32,
 }
 
 /// A target that starts at `from` when the command arrives and moves towards `to` at
@@ -50,17 +81,20 @@ pub struct MovingTarget {
 }
 
 /// What the master reports to the host.
-#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum MasterToHost {
-    HelloReply {
-        protocol_version: u16,
-        /// [`crate::schema_fingerprint`] of the master's build.
-        schema_fingerprint: u32,
-    },
+    HelloReply(BoardInfo),
     Telemetry(Telemetry),
     /// A command was well-framed but not acceptable; the motors were stopped.
     Rejected(RejectReason),
+    /// A piece of the slave's report stream (go-back-N, see [`crate::link`]).
+    Reports(DataFrame),
+    /// Acknowledges the host's event stream, with the room left in the master's buffer.
+    EventsAck(Ack),
+    /// Only a simulated board sends this: the true pose at slave time `t_us`, so a recording
+    /// of an emulated robot can be scored. Real boards never know the truth.
+    SimTruth { t_us: u64, pose: Pose },
 }
 
 #[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]

@@ -6,21 +6,36 @@
 //! over everything before it in the last two bytes. Idle lines (all `0xFF` or all `0x00`) and
 //! torn frames fail the CRC, are counted, and are never acted on.
 
-use crate::Pose;
+use crate::{Bytes, Pose};
 use postcard::experimental::max_size::MaxSize;
 use postcard_schema::Schema;
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
-/// Bytes per SPI transaction, each way.
-pub const SPI_FRAME_LEN: usize = 64;
+/// Bytes per SPI transaction, each way (455 µs at the 2.25 MHz clock).
+pub const SPI_FRAME_LEN: usize = 128;
 /// Bytes available to the postcard payload.
 pub const SPI_PAYLOAD_LEN: usize = SPI_FRAME_LEN - 2;
 
 const CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
 
-/// Incremental encoder slots in a slave frame (the seed 004 slave uses two; three leaves room
-/// for seed 000's triangle of measuring wheels without a protocol change).
-pub const ENCODER_SLOTS: usize = 3;
+/// Incremental encoders a slave can be given (the board counts two in hardware; played
+/// streams may carry up to this many, e.g. seed 000's triangle).
+pub const ENCODER_SLOTS: usize = 4;
+
+/// Stream bytes one SPI frame carries each way (played sensor events master -> slave, reports
+/// slave -> master).
+pub const STREAM_CHUNK: usize = 56;
+
+/// A piece of a byte stream: `bytes` sit at byte `offset` of the stream (wrapping `u32`).
+/// The receiver takes a chunk only when `offset` is exactly where it is (so a lost frame
+/// makes it refuse the ones after it) and acknowledges the next offset it wants; the sender
+/// goes back to that offset (go-back-N over the poll cycle, see `docs/protocol.md`).
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Chunk {
+    pub offset: u32,
+    pub bytes: Bytes<STREAM_CHUNK>,
+}
 
 /// The slave's odometry frame: what the master reads on every poll.
 #[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -34,10 +49,6 @@ pub struct SlaveFrame {
     /// transaction ended. The master knows that instant on its own clock, so
     /// `armed_us - time_us` tells it how old the pose is without synchronised clocks.
     pub armed_us: u32,
-    /// Cumulative encoder counts since the slave's last reset (low 32 bits of 64-bit totals).
-    pub counts: [i32; ENCODER_SLOTS],
-    /// Absolute encoder code as decoded from Gray (0..2^bits).
-    pub abs_code: u16,
     /// Pose of the body reference point from the slave's odometry.
     pub pose: Pose,
     /// [`slave_status`] flags.
@@ -48,6 +59,85 @@ pub struct SlaveFrame {
     pub rx_rejected: u16,
     /// The odometry algorithm producing `pose`.
     pub algorithm: OdometryAlgorithm,
+    /// Fingerprint of the robot the slave runs ([`crate::robot::fingerprint`]).
+    pub robot: u32,
+    /// Where the odometry's readings come from.
+    pub source: SensorSource,
+    /// Odometry update period, microseconds (of played time when playing).
+    pub period_us: u32,
+    /// Next byte of the master's event stream the slave wants (acknowledges all before it).
+    pub events_next: u32,
+    /// The next piece of the slave's report stream ([`Report`]s, postcard, back to back).
+    pub reports: Chunk,
+}
+
+/// Where the slave's odometry readings come from.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SensorSource {
+    /// The timers' quadrature counters, read at the fixed update rate.
+    Counts,
+    /// Every encoder edge time-stamped by the board (the board's default).
+    #[default]
+    Ticks,
+    /// Played count samples from the host, one per update of played time.
+    PlayedCounts,
+    /// Played time-stamped ticks from the host; updates every period of played time.
+    PlayedTicks,
+}
+
+impl SensorSource {
+    pub fn is_played(self) -> bool {
+        matches!(self, SensorSource::PlayedCounts | SensorSource::PlayedTicks)
+    }
+}
+
+/// What the slave writes to its report stream.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Reports {
+    /// Nothing (live odometry; the master reads the pose from every frame).
+    #[default]
+    Off,
+    /// Playing: the pose after every update.
+    Poses,
+    /// Recording: every sensor event the slave reads (the [`crate::events`] code) and the
+    /// pose every `pose_every` updates.
+    Record { pose_every: u16 },
+}
+
+/// One record of the slave's report stream. Records are postcard-encoded back to back; the
+/// stream is delivered in order and complete, so they need no framing of their own.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Report {
+    /// The pose after one update (playing: after every update, in order from the first one
+    /// after the source was set). `digest` is [`pose_digest`] of the full-precision pose, so
+    /// the host can check bit-exactness beyond the micrometre rounding.
+    Pose { pose: Pose, digest: u32 },
+    /// Recording: the pose at slave time `t_us`.
+    PoseAt { t_us: u64, pose: Pose },
+    /// Recording: sensor events, a piece of one continuous [`crate::events`] stream.
+    Sensors(Bytes<REPORT_SENSOR_BYTES>),
+    /// Recording: the report stream was full, so this many encoder events and updates were
+    /// dropped before the next record (the file gets a gap, not invented data).
+    Lost { events: u32, updates: u32 },
+    /// Playing: the event stream failed to decode at this byte offset; play stopped.
+    BadEvents { offset: u32 },
+}
+
+/// Largest piece of the event stream in one [`Report::Sensors`].
+pub const REPORT_SENSOR_BYTES: usize = 40;
+
+/// A 32-bit digest of a full-precision pose (Q40 metres x, y and a 64-bit binary-angle
+/// heading, as `robot_math::exact::FixedPose` holds them): CRC-32 over their little-endian
+/// bytes. Equal digests at every update is how `play` shows the board computed the same bits.
+pub fn pose_digest(x: i64, y: i64, theta: u64) -> u32 {
+    let mut d = crate::FINGERPRINT_CRC.digest();
+    d.update(&x.to_le_bytes());
+    d.update(&y.to_le_bytes());
+    d.update(&theta.to_le_bytes());
+    d.finalize()
 }
 
 /// The odometry methods (SPEC §3). The slave runs `Exact` unless told otherwise; a slave that
@@ -80,10 +170,15 @@ pub mod slave_status {
     /// Tick-timestamp mode lost encoder edges (queue overflow or both channels changing at
     /// once): the interpolated positions may be off until the next ticks.
     pub const EDGES_LOST: u16 = 1 << 4;
+    /// The last robot upload was refused (fingerprint mismatch, missing parts, a layout the
+    /// estimator cannot run): the slave kept the robot it had.
+    pub const ROBOT_REJECTED: u16 = 1 << 5;
+    /// Played events failed to decode: play stopped (see [`super::Report::BadEvents`]).
+    pub const EVENTS_BAD: u16 = 1 << 6;
 }
 
 /// What the master sends on every poll.
-#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MasterFrame {
     pub seq: u16,
@@ -92,9 +187,13 @@ pub struct MasterFrame {
     /// slave applies each command once.
     pub command_seq: u8,
     pub command: SlaveCommand,
+    /// The next piece of the played event stream (empty when not playing).
+    pub events: Chunk,
+    /// Next byte of the slave's report stream the master wants (acknowledges all before it).
+    pub reports_next: u32,
 }
 
-#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SlaveCommand {
     #[default]
@@ -103,6 +202,20 @@ pub enum SlaveCommand {
     SetPose(Pose),
     /// Switch the odometry algorithm, continuing from the current pose.
     SetAlgorithm(OdometryAlgorithm),
+    /// Robot upload, one per encoder: where it is and how far a count is.
+    RobotWheel(crate::robot::WheelPart),
+    /// Robot upload, one per encoder: `exact`'s integer constants, computed by the host.
+    RobotExact(crate::robot::ExactPart),
+    /// Ends a robot upload: the slave checks the fingerprint over the parts it holds, installs
+    /// the robot and restarts odometry at the origin (or keeps its robot and raises
+    /// [`slave_status::ROBOT_REJECTED`]).
+    RobotCommit(crate::robot::RobotHeader),
+    /// Where readings come from and what to report; restarts odometry at the origin with both
+    /// stream offsets at zero.
+    SetSource {
+        source: SensorSource,
+        reports: Reports,
+    },
 }
 
 const _: () = assert!(SlaveFrame::POSTCARD_MAX_SIZE <= SPI_PAYLOAD_LEN);
