@@ -14,6 +14,7 @@
 #![cfg_attr(not(test), no_std)]
 
 mod bytes;
+pub mod chunks;
 pub mod events;
 pub mod link;
 pub mod robot;

@@ -1,0 +1,209 @@
+//! A byte stream over the SPI poll cycle, each way: every transaction carries one [`Chunk`]
+//! of the sender's stream and the offset the receiver wants next.
+//!
+//! The cycle has a fixed lag: a board arms (slave) or builds (master) frame `k` before it has
+//! seen the other side's answer to frame `k - 1`, so the newest acknowledgement it holds
+//! answers the chunk it sent two frames before ([`ACK_LAG`]). The sender sends new bytes
+//! optimistically every frame and remembers where its last chunks ended; an acknowledgement
+//! short of where the chunk `ACK_LAG` frames back ended means that chunk was lost (a bad CRC,
+//! a torn transaction, or a receiver without room), and the sender goes back to the
+//! acknowledged offset (go-back-N). The receiver takes only bytes that continue its stream.
+//! Both ends hold their positions as wrapping `u32` offsets.
+
+use crate::spi::{Chunk, STREAM_CHUNK};
+use crate::Bytes;
+
+/// Frames between sending a chunk and holding the acknowledgement that answers it.
+pub const ACK_LAG: usize = 2;
+
+/// `a - b` in offset space (positive: `a` is after `b`).
+fn diff(a: u32, b: u32) -> i64 {
+    a.wrapping_sub(b) as i32 as i64
+}
+
+/// Sending end: a ring of `N` bytes from the oldest unacknowledged one.
+pub struct ChunkSender<const N: usize> {
+    buf: [u8; N],
+    head: usize,
+    len: usize,
+    /// Stream offset of `buf[head]`.
+    base: u32,
+    /// Next offset to send.
+    send: u32,
+    /// End offsets of the chunks sent in the last frames, newest first (None: empty chunk or
+    /// sent before a go-back).
+    sent_ends: [Option<u32>; ACK_LAG],
+    /// Go-backs so far (wrapping), for link statistics.
+    pub go_backs: u32,
+}
+
+impl<const N: usize> Default for ChunkSender<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> ChunkSender<N> {
+    pub const fn new() -> Self {
+        ChunkSender {
+            buf: [0; N],
+            head: 0,
+            len: 0,
+            base: 0,
+            send: 0,
+            sent_ends: [None; ACK_LAG],
+            go_backs: 0,
+        }
+    }
+
+    /// Room for more bytes.
+    pub fn free(&self) -> usize {
+        N - self.len
+    }
+
+    /// Bytes not yet acknowledged.
+    pub fn unacked(&self) -> usize {
+        self.len
+    }
+
+    /// Append as much of `bytes` as fits; returns how many were taken.
+    pub fn push(&mut self, bytes: &[u8]) -> usize {
+        let n = bytes.len().min(self.free());
+        for (i, &b) in bytes[..n].iter().enumerate() {
+            self.buf[(self.head + self.len + i) % N] = b;
+        }
+        self.len += n;
+        n
+    }
+
+    /// The chunk for the next frame (empty when everything was sent).
+    pub fn next_chunk(&mut self) -> Chunk {
+        let start = diff(self.send, self.base).clamp(0, self.len as i64) as usize;
+        let n = (self.len - start).min(STREAM_CHUNK);
+        let mut tmp = [0u8; STREAM_CHUNK];
+        for (i, slot) in tmp[..n].iter_mut().enumerate() {
+            *slot = self.buf[(self.head + start + i) % N];
+        }
+        let offset = self.base.wrapping_add(start as u32);
+        self.send = offset.wrapping_add(n as u32);
+        self.sent_ends.rotate_right(1);
+        self.sent_ends[0] = (n > 0).then_some(self.send);
+        Chunk {
+            offset,
+            bytes: Bytes::from_slice_truncating(&tmp[..n]),
+        }
+    }
+
+    /// The receiver wants `next`: everything before it arrived.
+    pub fn on_ack(&mut self, next: u32) {
+        let acked = diff(next, self.base);
+        if acked > 0 && acked as usize <= self.len {
+            self.head = (self.head + acked as usize) % N;
+            self.len -= acked as usize;
+            self.base = next;
+        }
+        // The chunk ACK_LAG frames back should be answered by now.
+        if let Some(end) = self.sent_ends[ACK_LAG - 1] {
+            if diff(next, end) < 0 {
+                self.send = self.base;
+                self.sent_ends = [None; ACK_LAG];
+                self.go_backs = self.go_backs.wrapping_add(1);
+            }
+        }
+    }
+
+    /// Start a new stream at offset 0, dropping everything held.
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+}
+
+/// Receiving end: where the stream continues.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ChunkReceiver {
+    /// The next offset wanted (what the acknowledgement carries).
+    pub next: u32,
+}
+
+impl ChunkReceiver {
+    pub const fn new() -> Self {
+        ChunkReceiver { next: 0 }
+    }
+
+    /// The bytes of `chunk` that continue the stream, at most `room` of them (the rest are
+    /// refused and will come again); empty if the chunk starts after `next` (one before it
+    /// was lost) or holds nothing new.
+    pub fn accept<'a>(&mut self, chunk: &'a Chunk, room: usize) -> &'a [u8] {
+        let skip = diff(self.next, chunk.offset);
+        let bytes = chunk.bytes.as_slice();
+        if skip < 0 || skip as usize >= bytes.len() {
+            return &[];
+        }
+        let fresh = &bytes[skip as usize..];
+        let n = fresh.len().min(room);
+        self.next = self.next.wrapping_add(n as u32);
+        &fresh[..n]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Both directions of the poll cycle with ACK_LAG: frame k carries the acknowledgement the
+    /// receiver held after frame k-1; drop some frames; the stream arrives whole and in order.
+    fn transfer(drop: impl Fn(usize) -> bool, room: usize) -> Vec<u8> {
+        let data: Vec<u8> = (0..5000u32).map(|i| (i * 7 + i / 13) as u8).collect();
+        let mut tx = ChunkSender::<512>::new();
+        let mut rx = ChunkReceiver::new();
+        let mut got = Vec::new();
+        let mut fed = 0;
+        // What the sender will learn at the next frame: the receiver's ack as of one frame ago.
+        let mut ack_in_flight = 0u32;
+        for k in 0..20_000 {
+            fed += tx.push(&data[fed..]);
+            tx.on_ack(ack_in_flight);
+            let chunk = tx.next_chunk();
+            ack_in_flight = rx.next;
+            if !drop(k) {
+                got.extend_from_slice(rx.accept(&chunk, room));
+            }
+            if got.len() == data.len() {
+                break;
+            }
+        }
+        assert_eq!(got, data);
+        got
+    }
+
+    #[test]
+    fn lossless_lossy_and_cramped_streams_arrive_whole() {
+        transfer(|_| false, usize::MAX);
+        transfer(|k| k % 7 == 3, usize::MAX);
+        transfer(|k| k % 3 != 0, usize::MAX);
+        transfer(|k| (k / 5) % 4 == 1, usize::MAX);
+        // A receiver that can take only part of each chunk.
+        transfer(|_| false, 10);
+        transfer(|k| k % 5 == 0, 17);
+    }
+
+    #[test]
+    fn offsets_wrap() {
+        let mut tx = ChunkSender::<64>::new();
+        tx.base = u32::MAX - 20;
+        tx.send = tx.base;
+        let mut rx = ChunkReceiver { next: u32::MAX - 20 };
+        let mut got = Vec::new();
+        let data = [5u8; 200];
+        let mut fed = 0;
+        let mut ack = rx.next;
+        for _ in 0..100 {
+            fed += tx.push(&data[fed..]);
+            tx.on_ack(ack);
+            let c = tx.next_chunk();
+            ack = rx.next;
+            got.extend_from_slice(rx.accept(&c, usize::MAX));
+        }
+        assert_eq!(got.len(), 200);
+    }
+}
