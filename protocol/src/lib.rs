@@ -4,6 +4,10 @@
 //!   `COBS(postcard(message) ++ CRC-32)` followed by a `0x00` delimiter.
 //! * [`spi`]: master <-> slave. Every transaction moves one fixed-size frame each way:
 //!   `postcard(message)`, zero padding, CRC-16 in the last two bytes.
+//! * [`link`]: reliable, in-order byte streams over either of them (go-back-N with a credit
+//!   window), sans-IO.
+//! * [`events`]: compact byte codes for played sensor events (ticks, absolute codes, count
+//!   samples) and their streaming decoders.
 //!
 //! The firmware and the host link this same crate, so both sides agree byte for byte; the
 //! golden-byte tests in `tests/golden.rs` pin the encoding, and [`schema_fingerprint`] lets the
