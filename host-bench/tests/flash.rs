@@ -234,11 +234,16 @@ fn a_probe_this_user_may_not_open_names_the_udev_rule() {
     assert!(err.to_string().contains("69-probe-rs.rules"), "{err}");
 }
 
-/// The real firmware-slave image, built once per test run into its own target folder (a
-/// build into the shared one would wait forever on the lock `cargo test` itself holds).
+/// The real firmware image of `board`: from `$OMNIBENCH_FIRMWARE_DIR` if set (a folder holding
+/// already-built release images, as `.ci/run` does so as not to build them twice), otherwise
+/// built once per test run into its own target folder (a build into the shared one would wait
+/// forever on the lock `cargo test` itself holds).
 fn firmware_image(board: Board) -> PathBuf {
     static BUILT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
     let dir = BUILT.get_or_init(|| {
+        if let Some(dir) = std::env::var_os("OMNIBENCH_FIRMWARE_DIR") {
+            return Ok(PathBuf::from(dir));
+        }
         let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
         let target = std::env::var_os("CARGO_TARGET_DIR")
             .map(PathBuf::from)

@@ -144,7 +144,11 @@ fn round_trip_plain_keeps_every_kind_comment_and_bit() {
             assert_eq!(theta_rad.to_bits(), t2.to_bits());
         }
     }
-    assert!(!dir.join("ticks.csv.partial").exists());
+    assert_eq!(
+        entries(&dir),
+        ["ticks.csv"],
+        "only the stream itself is left"
+    );
 }
 
 #[test]
@@ -492,19 +496,29 @@ fn write_refuses_an_invalid_stream_and_leaves_nothing() {
 #[test]
 fn failed_write_leaves_no_partial_file() {
     let dir = scratch("write_fails");
-    // The target is an existing directory: writing the .partial works, the rename fails.
+    // The target is an existing directory: writing the temporary file works, the rename fails.
     let target = dir.join("ticks.csv");
     fs::create_dir(&target).unwrap();
     fs::write(target.join("keep"), "x").unwrap();
     let e = tickstream::write(&target, &sample()).unwrap_err();
     assert!(format!("{e:#}").contains("cannot rename"), "{e:#}");
-    assert!(!dir.join("ticks.csv.partial").exists());
-    // A directory that does not exist: nothing can be created.
+    assert_eq!(entries(&dir), ["ticks.csv"], "a temporary file was left");
+    assert_eq!(entries(&target), ["keep"]);
+    // A directory that does not exist: nothing can be created, and the error says where.
     let e = tickstream::write(&dir.join("no/such/dir.csv"), &sample()).unwrap_err();
-    assert!(
-        format!("{e:#}").contains("no/such/dir.csv.partial"),
-        "{e:#}"
-    );
+    let chain = format!("{e:#}");
+    assert!(chain.contains("no/such/dir.csv"), "{chain}");
+    assert!(chain.contains("temporary file in"), "{chain}");
+}
+
+/// The names in `dir`, sorted.
+fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
 }
 
 // ---- one test per error class ------------------------------------------------------------

@@ -74,9 +74,8 @@ pub struct Score {
 impl Score {
     /// Write the track as CSV (t, truth, estimate, position error), atomically.
     pub fn write_track(&self, path: &std::path::Path) -> Result<()> {
-        let tmp = path.with_extension("csv.partial");
-        let result = (|| -> Result<()> {
-            let mut w = csv::Writer::from_path(&tmp)?;
+        crate::formats::atomic::write_atomically(path, |file| {
+            let mut w = csv::Writer::from_writer(file);
             w.write_record([
                 "t_s",
                 "true_x_m",
@@ -103,13 +102,8 @@ impl Score {
                 )?;
             }
             w.flush()?;
-            std::fs::rename(&tmp, path)?;
             Ok(())
-        })();
-        if result.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        result.with_context(|| format!("writing {}", path.display()))
+        })
     }
 }
 

@@ -1,15 +1,18 @@
 //! Reporting: the human summary, the CSV log and the SVG plot of a run.
 //!
-//! Files are written to a temporary name in the output folder and renamed into place, so an
-//! interrupted or failed run never leaves a half-written file behind.
+//! Files are written atomically ([`write_atomically`]), so an interrupted or failed run never
+//! leaves a half-written file behind.
 
-use std::fs;
+use std::fs::{self, File};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use crate::formats::atomic::write_atomically;
 use crate::sim::emulator::{LogRow, Run, Summary};
 
 /// The short summary `emulate` prints.
@@ -56,31 +59,17 @@ pub fn write_outputs(run: &Run, dir: &Path) -> Result<Vec<PathBuf>> {
     let csv_path = dir.join("run.csv");
     let svg_path = dir.join("path.svg");
     let json_path = dir.join("summary.json");
-    write_atomically(&csv_path, |tmp| write_csv(&run.log, tmp))?;
-    write_atomically(&svg_path, |tmp| write_svg(run, tmp))?;
-    write_atomically(&json_path, |tmp| {
-        fs::write(tmp, serde_json::to_string_pretty(&run.summary)? + "\n")?;
-        Ok(())
+    write_atomically(&csv_path, |file| write_csv(&run.log, file))?;
+    write_svg(&svg_path, |root| draw_run(run, root))?;
+    write_atomically(&json_path, |file| {
+        serde_json::to_writer_pretty(&mut *file, &run.summary)?;
+        Ok(file.write_all(b"\n")?)
     })?;
     Ok(vec![csv_path, svg_path, json_path])
 }
 
-fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let tmp = path.with_extension(format!(
-        "{}.partial",
-        path.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
-    let result = write(&tmp).and_then(|()| {
-        fs::rename(&tmp, path).with_context(|| format!("cannot move {} into place", path.display()))
-    });
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
-    }
-    result.with_context(|| format!("writing {}", path.display()))
-}
-
-fn write_csv(rows: &[LogRow], path: &Path) -> Result<()> {
-    let mut w = csv::Writer::from_path(path)?;
+fn write_csv(rows: &[LogRow], file: &mut File) -> Result<()> {
+    let mut w = csv::Writer::from_writer(file);
     for r in rows {
         w.serialize(r)?;
     }
@@ -88,7 +77,18 @@ fn write_csv(rows: &[LogRow], path: &Path) -> Result<()> {
     Ok(())
 }
 
-fn write_svg(run: &Run, path: &Path) -> Result<()> {
+/// Draws an 800 x 1100 SVG with `draw`, then writes it to `path` atomically.
+fn write_svg(
+    path: &Path,
+    draw: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
+) -> Result<()> {
+    let mut text = String::new();
+    draw(SVGBackend::with_string(&mut text, (800, 1100)).into_drawing_area())?;
+    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
+}
+
+/// The run's plot: the paths on top, the position error against time below.
+fn draw_run(run: &Run, root: DrawingArea<SVGBackend<'_>, Shift>) -> Result<()> {
     let log = &run.log;
     let pts = |f: fn(&LogRow) -> Option<(f64, f64)>| -> Vec<(f64, f64)> {
         log.iter().filter_map(f).collect()
@@ -100,7 +100,6 @@ fn write_svg(run: &Run, path: &Path) -> Result<()> {
 
     let (x0, x1, y0, y1) = square_bounds(truth.iter().chain(&slave).chain(&target));
 
-    let root = SVGBackend::new(path, (800, 1100)).into_drawing_area();
     root.fill(&WHITE)?;
     let (top, bottom) = root.split_vertically(860);
     let s = &run.summary;
@@ -252,7 +251,7 @@ pub fn write_case_svg(
     title: &str,
     scores: &[crate::eval::replay::Score],
 ) -> Result<()> {
-    write_atomically(path, |tmp| case_svg(tmp, title, scores))
+    write_svg(path, |root| draw_case(root, title, scores))
 }
 
 const METHOD_COLORS: [RGBColor; 4] = [
@@ -262,13 +261,16 @@ const METHOD_COLORS: [RGBColor; 4] = [
     RGBColor(220, 40, 40),
 ];
 
-fn case_svg(path: &Path, title: &str, scores: &[crate::eval::replay::Score]) -> Result<()> {
+fn draw_case(
+    root: DrawingArea<SVGBackend<'_>, Shift>,
+    title: &str,
+    scores: &[crate::eval::replay::Score],
+) -> Result<()> {
     let Some(first) = scores.first() else {
         anyhow::bail!("no method ran on {title}");
     };
     let truth: Vec<(f64, f64)> = first.track.iter().map(|(_, _, t)| (t.x, t.y)).collect();
     let (x0, x1, y0, y1) = square_bounds(&truth);
-    let root = SVGBackend::new(path, (800, 1100)).into_drawing_area();
     root.fill(&WHITE)?;
     let (top, bottom) = root.split_vertically(800);
     let mut chart = ChartBuilder::on(&top)

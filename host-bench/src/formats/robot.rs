@@ -359,7 +359,14 @@ impl Parser<'_> {
         self.check_format_and_shape(&tree)?;
 
         // 3. Keys and types.
-        let raw: RawRobot = toml::from_str(self.text).map_err(|e| self.type_error(&tree, &e))?;
+        //    serde_path_to_error names the key (`encoders[2].direction_deg`); toml's error has
+        //    the span, hence the line.
+        let document = toml::Deserializer::parse(self.text).map_err(|e| {
+            let offset = e.span().map_or(0, |s| s.start);
+            self.error(Some(offset), None, format!("TOML syntax: {}", e.message()))
+        })?;
+        let raw: RawRobot =
+            serde_path_to_error::deserialize(document).map_err(|e| self.type_error(&e))?;
 
         // 4. Values and geometry.
         self.check(raw)
@@ -419,24 +426,31 @@ impl Parser<'_> {
         Ok(())
     }
 
-    /// A serde error (unknown key, wrong type, missing key) located in the parsed tree.
-    fn type_error(&self, tree: &Spanned<DeValue<'_>>, e: &toml::de::Error) -> RobotError {
-        let span = e.span().unwrap_or(0..0);
-        let mut path = key_for_span(tree, span.clone());
-        let mut message = e.message().replace("expected f64", "expected a number");
+    /// A serde error (unknown key, wrong type, missing key), at the key path where it happened.
+    fn type_error(&self, e: &serde_path_to_error::Error<toml::de::Error>) -> RobotError {
+        let span = e.inner().span().unwrap_or(0..0);
+        let mut path = key_path(e.path());
+        let mut message = e
+            .inner()
+            .message()
+            .replace("expected f64", "expected a number");
         message = message.replace("expected i64", "expected an integer");
         if let Some(missing) = message
             .strip_prefix("missing field `")
             .and_then(|m| m.strip_suffix('`'))
-            .map(str::to_string)
         {
-            path = Some(match path {
-                Some(p) if !p.is_empty() => format!("{p}.{missing}"),
-                _ => missing,
-            });
+            path = if path.is_empty() {
+                missing.to_string()
+            } else {
+                format!("{path}.{missing}")
+            };
             message = "missing (required)".into();
         }
-        self.error(Some(span.start), path.filter(|p| !p.is_empty()), message)
+        self.error(
+            Some(span.start),
+            Some(path).filter(|p| !p.is_empty()),
+            message,
+        )
     }
 
     fn check(&self, raw: RawRobot) -> Res<Robot> {
@@ -735,52 +749,27 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
     (line, before[line_start..].chars().count() + 1)
 }
 
-/// The key path of the node of the parsed document that a serde error's span points at: a node
-/// whose span is exactly the error's (the deepest such), else the smallest one containing it.
-/// `Some("")` is the document itself.
-fn key_for_span(tree: &Spanned<DeValue<'_>>, span: Range<usize>) -> Option<String> {
-    fn collect(v: &Spanned<DeValue<'_>>, path: &str, out: &mut Vec<(String, Range<usize>)>) {
-        match v.get_ref() {
-            DeValue::Table(t) => {
-                for (k, val) in t.iter() {
-                    let p = if path.is_empty() {
-                        k.get_ref().to_string()
-                    } else {
-                        format!("{path}.{}", k.get_ref())
-                    };
-                    out.push((p.clone(), k.span()));
-                    out.push((p.clone(), val.span()));
-                    collect(val, &p, out);
+/// A serde path as the file's key path, `encoders[2].direction_deg` (empty for the document
+/// itself), leaving out the fields `toml::Spanned` deserializes through.
+fn key_path(path: &serde_path_to_error::Path) -> String {
+    use serde_path_to_error::Segment;
+    let mut out = String::new();
+    for segment in path.iter() {
+        match segment {
+            Segment::Seq { index } => out.push_str(&format!("[{index}]")),
+            // Spanned<T> is read as a map of private fields (serde_spanned's naming; a change
+            // there fails `inline_tables_are_located_too` and `missing_keys_are_named`).
+            Segment::Map { key } if key.starts_with("$__serde_spanned_private_") => {}
+            Segment::Map { key } | Segment::Enum { variant: key } => {
+                if !out.is_empty() {
+                    out.push('.');
                 }
+                out.push_str(key);
             }
-            DeValue::Array(a) => {
-                for (i, e) in a.iter().enumerate() {
-                    let p = format!("{path}[{i}]");
-                    out.push((p.clone(), e.span()));
-                    collect(e, &p, out);
-                }
-            }
-            _ => {}
+            Segment::Unknown => out.push_str(if out.is_empty() { "?" } else { ".?" }),
         }
     }
-    let mut nodes = Vec::new();
-    collect(tree, "", &mut nodes);
-    if let Some((p, _)) = nodes
-        .iter()
-        .filter(|(_, s)| *s == span)
-        .max_by_key(|(p, _)| p.len())
-    {
-        return Some(p.clone());
-    }
-    if span.is_empty() {
-        // serde reports a key missing from the document itself with an empty span.
-        return Some(String::new());
-    }
-    nodes
-        .iter()
-        .filter(|(_, s)| s.start <= span.start && span.end <= s.end)
-        .min_by_key(|(p, s)| (s.len(), usize::MAX - p.len()))
-        .map(|(p, _)| p.clone())
+    out
 }
 
 /// For a syntax error (no parsed tree to consult): the key path of the line at `offset`, from

@@ -12,11 +12,13 @@
 //! the only allocation that grows with the file is the events vector.
 
 use std::fmt;
-use std::fs::{self, File};
+use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+
+use super::atomic::write_atomically;
 use flate2::read::MultiGzDecoder;
 use flate2::write::GzEncoder;
 use flate2::Compression;
@@ -594,23 +596,10 @@ fn shown_or_empty(s: &str) -> String {
 
 /// Writes a tick stream: gzip-compressed if `path` ends in `.gz`. The stream is checked first
 /// (time order, steps of ±1, finite truth, comments that read back as written), then written
-/// to `<path>.partial` and renamed, so a failed write leaves nothing half-written.
+/// atomically ([`write_atomically`]), so a failed write leaves nothing half-written.
 pub fn write(path: &Path, stream: &TickStream) -> anyhow::Result<()> {
     validate(stream).with_context(|| format!("not writing {}", path.display()))?;
-    let mut partial = path.as_os_str().to_owned();
-    partial.push(".partial");
-    let partial = PathBuf::from(partial);
-    let result = write_file(&partial, is_gz_name(path), stream)
-        .with_context(|| format!("cannot write {}", partial.display()))
-        .and_then(|()| {
-            fs::rename(&partial, path).with_context(|| {
-                format!("cannot rename {} to {}", partial.display(), path.display())
-            })
-        });
-    if result.is_err() {
-        let _ = fs::remove_file(&partial);
-    }
-    result
+    write_atomically(path, |file| write_file(file, is_gz_name(path), stream))
 }
 
 fn validate(stream: &TickStream) -> anyhow::Result<()> {
@@ -661,9 +650,8 @@ fn validate(stream: &TickStream) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn write_file(partial: &Path, gzip: bool, stream: &TickStream) -> anyhow::Result<()> {
-    let file = File::create(partial)?;
-    let file = if gzip {
+fn write_file(file: &mut File, gzip: bool, stream: &TickStream) -> anyhow::Result<()> {
+    if gzip {
         // Buffer in front of the encoder: it is slow with many small writes.
         let encoder = GzEncoder::new(file, Compression::fast());
         let mut buffered = BufWriter::with_capacity(WRITE_BUFFER_BYTES, encoder);
@@ -671,13 +659,12 @@ fn write_file(partial: &Path, gzip: bool, stream: &TickStream) -> anyhow::Result
         buffered
             .into_inner()
             .map_err(|e| e.into_error())?
-            .finish()?
+            .finish()?;
     } else {
         let mut buffered = BufWriter::with_capacity(WRITE_BUFFER_BYTES, file);
         write_text(&mut buffered, stream)?;
-        buffered.into_inner().map_err(|e| e.into_error())?
-    };
-    file.sync_all()?;
+        buffered.flush()?;
+    }
     Ok(())
 }
 
