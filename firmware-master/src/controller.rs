@@ -4,54 +4,21 @@
 use crate::MasterConfig;
 use embassy_time::Instant;
 use protocol::serial::{
-    status, HostToMaster, LinkCounters, MasterToHost, MovingTarget, RejectReason, Telemetry,
+    status, BoardInfo, HostToMaster, LinkCounters, MasterToHost, MovingTarget, RejectReason,
+    Telemetry,
 };
 use protocol::spi::{MasterFrame, SlaveCommand, SlaveFrame, SpiFrameError};
+
+use crate::relay::Relay;
 use protocol::{Pose, PROTOCOL_VERSION};
 use robot_math::omni3::Omni3;
 use robot_math::pursuit::{field_to_body, pursue, SegmentTarget};
 use robot_math::{Pose2, Twist};
 
-/// A small fixed-capacity FIFO of slave commands (no allocation on the board).
-#[derive(Clone, Copy, Debug)]
-struct CommandQueue {
-    items: [SlaveCommand; 4],
-    head: usize,
-    len: usize,
-}
-
-impl CommandQueue {
-    const fn new() -> Self {
-        CommandQueue {
-            items: [SlaveCommand::None; 4],
-            head: 0,
-            len: 0,
-        }
-    }
-    fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-    fn push(&mut self, c: SlaveCommand) -> bool {
-        if self.len == self.items.len() {
-            return false;
-        }
-        self.items[(self.head + self.len) % self.items.len()] = c;
-        self.len += 1;
-        true
-    }
-    fn front(&self) -> Option<SlaveCommand> {
-        (self.len > 0).then(|| self.items[self.head])
-    }
-    /// Drop the front command; false if there was none.
-    fn pop(&mut self) -> bool {
-        if self.len == 0 {
-            return false;
-        }
-        self.head = (self.head + 1) % self.items.len();
-        self.len -= 1;
-        true
-    }
-}
+/// Slave commands waiting for the slave, oldest first: room for a whole robot upload (two
+/// parts per encoder and the commit) plus a source and a pose.
+pub const COMMAND_QUEUE: usize = 2 * protocol::spi::ENCODER_SLOTS + 4;
+type CommandQueue = heapless::Deque<SlaveCommand, COMMAND_QUEUE>;
 
 /// What the control step wants done with the motors.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -89,6 +56,10 @@ pub struct Controller {
     wheel_cmd: [f64; 3],
     duty: [i16; 3],
     counters: LinkCounters,
+    /// Play and record streams between the host and the slave.
+    relay: Relay,
+    /// The newest valid slave frame, whatever commands are pending (for the board info).
+    slave_latest: Option<SlaveFrame>,
 }
 
 fn secs(t: Instant) -> f64 {
@@ -111,6 +82,8 @@ impl Controller {
             spi_seq: 0,
             command_seq: 0,
             commands: CommandQueue::new(),
+            relay: Relay::new(),
+            slave_latest: None,
             slave: None,
             prev_exchange_end: None,
             last_fresh_slave: None,
@@ -133,10 +106,19 @@ impl Controller {
                     host: protocol_version,
                 }))
             }
-            HostToMaster::Hello { .. } => Some(MasterToHost::HelloReply {
-                protocol_version: PROTOCOL_VERSION,
-                schema_fingerprint: protocol::schema_fingerprint(),
-            }),
+            HostToMaster::Hello { .. } => {
+                self.relay.reset_host();
+                Some(MasterToHost::HelloReply(self.board_info()))
+            }
+            HostToMaster::Slave(c) => self.queue_for_slave(c),
+            HostToMaster::Events(f) => {
+                self.relay.on_host_events(&f);
+                None
+            }
+            HostToMaster::ReportsAck(a) => {
+                self.relay.on_host_ack(a, now.as_micros());
+                None
+            }
             HostToMaster::SetPose(p) => self.queue_for_slave(SlaveCommand::SetPose(p)),
             HostToMaster::SetOdometry(a) => self.queue_for_slave(SlaveCommand::SetAlgorithm(a)),
             HostToMaster::FollowTarget(t) => match self.validate(now, &t) {
@@ -186,7 +168,7 @@ impl Controller {
     /// which only a host flooding commands faster than the slave applies them can cause.
     fn queue_for_slave(&mut self, c: SlaveCommand) -> Option<MasterToHost> {
         let was_empty = self.commands.is_empty();
-        if !self.commands.push(c) {
+        if self.commands.push_back(c).is_err() {
             return Some(self.reject(RejectReason::Busy));
         }
         if was_empty {
@@ -212,7 +194,9 @@ impl Controller {
         MasterFrame {
             seq: self.spi_seq,
             command_seq: self.command_seq,
-            command: self.commands.front().unwrap_or(SlaveCommand::None),
+            command: self.commands.front().cloned().unwrap_or(SlaveCommand::None),
+            events: self.relay.events_chunk(self.commands.is_empty()),
+            reports_next: self.relay.reports_next(),
         }
     }
 
@@ -224,11 +208,21 @@ impl Controller {
             return;
         };
         self.counters.spi_ok = self.counters.spi_ok.wrapping_add(1);
+        self.slave_latest = Some(f.clone());
         self.counters.slave_rx_rejected = f.rx_rejected as u32;
-        if f.command_ack == self.command_seq && self.commands.pop() && !self.commands.is_empty() {
-            // The next queued command goes out under a new number.
-            self.command_seq = self.command_seq.wrapping_add(1);
+        if f.command_ack == self.command_seq {
+            if let Some(done) = self.commands.pop_front() {
+                if matches!(done, SlaveCommand::SetSource { .. }) {
+                    // The slave restarted both SPI streams when it applied this.
+                    self.relay.reset_slave();
+                }
+                if !self.commands.is_empty() {
+                    // The next queued command goes out under a new number.
+                    self.command_seq = self.command_seq.wrapping_add(1);
+                }
+            }
         }
+        self.relay.on_slave_frame(&f);
         // A frame whose seq did not move means the slave's odometry loop is stuck: the SPI
         // peripheral still answers, but with stale data. Only moving frames count as alive.
         let fresh = self.slave.is_none_or(|(prev, _)| prev.seq != f.seq);
@@ -354,6 +348,33 @@ impl Controller {
             status: self.status | if slave_fault { status::SLAVE_FAULT } else { 0 },
             counters: self.counters,
             slave_algorithm: self.slave.map_or(Default::default(), |(f, _)| f.algorithm),
+        }
+    }
+
+    /// The next play/record frame for the host, if one is due.
+    pub fn poll_host_stream(&mut self, now: Instant) -> Option<MasterToHost> {
+        self.relay.poll_host(now.as_micros())
+    }
+
+    /// Whether play/record streams are moving (poll the slave faster).
+    pub fn streaming(&self) -> bool {
+        self.relay.busy()
+    }
+
+    /// What the hello reply says.
+    pub fn board_info(&self) -> BoardInfo {
+        let slave = self.slave_latest;
+        BoardInfo {
+            protocol_version: PROTOCOL_VERSION,
+            schema_fingerprint: protocol::schema_fingerprint(),
+            firmware_version: crate::FIRMWARE_VERSION,
+            master_uid: self.cfg.uid,
+            slave_seen: slave.is_some(),
+            robot: slave.map_or(0, |f| f.robot),
+            source: slave.map_or(Default::default(), |f| f.source),
+            period_us: slave.map_or(0, |f| f.period_us),
+            algorithm: slave.map_or(Default::default(), |f| f.algorithm),
+            baud: self.cfg.baud,
         }
     }
 

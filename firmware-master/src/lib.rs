@@ -12,6 +12,7 @@
 
 pub mod controller;
 pub mod ports;
+mod relay;
 mod tasks;
 
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
@@ -41,6 +42,34 @@ pub struct MasterConfig {
     pub slave_timeout_us: u32,
     /// Motors stop when the host sent nothing for this long while a target was followed.
     pub host_timeout_us: u32,
+    /// Poll period while play/record streams are moving (a 128-byte frame takes 455 µs).
+    pub stream_poll_period_us: u32,
+    /// The serial link's baud rate (USART1; the host must use the same).
+    pub baud: u32,
+    /// This chip's 96-bit unique ID (the board layer reads it; zero in the emulator).
+    pub uid: [u8; 12],
+}
+
+/// The master firmware's version, from Cargo.toml.
+pub const FIRMWARE_VERSION: [u8; 3] = [
+    parse_u8(env!("CARGO_PKG_VERSION_MAJOR")),
+    parse_u8(env!("CARGO_PKG_VERSION_MINOR")),
+    parse_u8(env!("CARGO_PKG_VERSION_PATCH")),
+];
+
+const fn parse_u8(s: &str) -> u8 {
+    let b = s.as_bytes();
+    let mut i = 0;
+    let mut v: u32 = 0;
+    while i < b.len() {
+        v = v * 10 + (b[i] - b'0') as u32;
+        i += 1;
+    }
+    if v > 255 {
+        255
+    } else {
+        v as u8
+    }
 }
 
 impl MasterConfig {
@@ -59,6 +88,9 @@ impl MasterConfig {
         telemetry_period_us: 20_000,
         slave_timeout_us: 50_000,
         host_timeout_us: 500_000,
+        stream_poll_period_us: 1_000,
+        baud: 115_200,
+        uid: [0; 12],
     };
 
     /// Fastest the robot can translate in every direction (seed 003: v_max·√3/2 is the worst

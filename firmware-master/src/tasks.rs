@@ -1,7 +1,7 @@
 //! The master's async tasks: thin loops between the ports and the [`Controller`].
 
 use embassy_futures::join::join4;
-use embassy_futures::select::{select, Either};
+use embassy_futures::select::{select3, Either3};
 use embassy_time::{Duration, Instant, Ticker, Timer};
 use embedded_io_async::{Read, Write};
 use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
@@ -79,16 +79,25 @@ async fn host_rx_task(mut rx: impl Read, shared: &MasterShared) -> ! {
     }
 }
 
-/// Send replies as they come and telemetry at a fixed rate.
+/// How often the host side checks the play/record streams for a frame to send.
+const STREAM_TX_PERIOD: Duration = Duration::from_millis(1);
+
+/// Send replies as they come, stream frames (acks, reports) as they are due, and telemetry
+/// at a fixed rate.
 async fn host_tx_task(mut tx: impl Write, shared: &MasterShared, config: &MasterConfig) -> ! {
     let mut ticker = Ticker::every(Duration::from_micros(config.telemetry_period_us as u64));
+    let mut streams = Ticker::every(STREAM_TX_PERIOD);
     let mut buf = [0u8; serial::MAX_FRAME];
     loop {
-        let msg = match select(shared.replies.receive(), ticker.next()).await {
-            Either::First(reply) => reply,
-            Either::Second(()) => match shared.with(|c| c.telemetry(Instant::now())) {
+        let msg = match select3(shared.replies.receive(), ticker.next(), streams.next()).await {
+            Either3::First(reply) => reply,
+            Either3::Second(()) => match shared.with(|c| c.telemetry(Instant::now())) {
                 Some(t) => MasterToHost::Telemetry(t),
                 None => continue,
+            },
+            Either3::Third(()) => match shared.with(|c| c.poll_host_stream(Instant::now())) {
+                Some(Some(m)) => m,
+                _ => continue,
             },
         };
         if let Ok(frame) = serial::encode(&msg, &mut buf) {
@@ -104,10 +113,19 @@ async fn slave_poll_task(
     shared: &MasterShared,
     config: &MasterConfig,
 ) -> ! {
-    let mut ticker = Ticker::every(Duration::from_micros(config.poll_period_us as u64));
+    let normal = Duration::from_micros(config.poll_period_us as u64);
+    let fast = Duration::from_micros(config.stream_poll_period_us as u64);
     let mut rx = [0u8; SPI_FRAME_LEN];
+    let mut next = Instant::now();
     loop {
-        ticker.next().await;
+        // Faster while play/record streams move; the slave needs the gap to re-arm.
+        let streaming = shared.with(|c| c.streaming()).unwrap_or(false);
+        next += if streaming { fast } else { normal };
+        let now = Instant::now();
+        if next < now {
+            next = now;
+        }
+        Timer::at(next).await;
         let Some(frame) = shared.with(|c| c.next_slave_frame()) else {
             continue;
         };

@@ -3,7 +3,8 @@
 use core::cell::RefCell;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
-use protocol::spi::{MasterFrame, SlaveCommand, SlaveFrame, ENCODER_SLOTS};
+use protocol::chunks::{ChunkReceiver, ChunkSender};
+use protocol::spi::{MasterFrame, SensorSource, SlaveCommand, SlaveFrame};
 use protocol::Pose;
 use robot_math::exact::FixedPose;
 use robot_math::Pose2;
@@ -14,6 +15,53 @@ struct State {
     pending: Option<(u8, SlaveCommand)>,
     /// The pose at full precision (the frame rounds it to micrometres), for the emulator's scoring.
     pose: FixedPose,
+    /// Played events from the master: where the stream is, and the bytes not consumed yet.
+    events_rx: ChunkReceiver,
+    events: Ring<EVENTS_BUFFER>,
+    /// Whether events are taken at all (only while playing).
+    events_open: bool,
+    /// The report stream to the master.
+    reports: ChunkSender<REPORTS_BUFFER>,
+}
+
+/// Played event bytes held for the odometry task.
+pub const EVENTS_BUFFER: usize = 512;
+/// Report bytes held for the master.
+pub const REPORTS_BUFFER: usize = 1024;
+
+/// A byte ring (consumed from the front).
+struct Ring<const N: usize> {
+    buf: [u8; N],
+    head: usize,
+    len: usize,
+}
+
+impl<const N: usize> Ring<N> {
+    const fn new() -> Self {
+        Ring {
+            buf: [0; N],
+            head: 0,
+            len: 0,
+        }
+    }
+    fn push(&mut self, bytes: &[u8]) {
+        for &b in bytes.iter().take(N - self.len) {
+            self.buf[(self.head + self.len) % N] = b;
+            self.len += 1;
+        }
+    }
+    fn peek(&self, out: &mut [u8]) -> usize {
+        let n = out.len().min(self.len);
+        for (i, slot) in out[..n].iter_mut().enumerate() {
+            *slot = self.buf[(self.head + i) % N];
+        }
+        n
+    }
+    fn consume(&mut self, n: usize) {
+        let n = n.min(self.len);
+        self.head = (self.head + n) % N;
+        self.len -= n;
+    }
 }
 
 /// The slave's shared state. `const`-constructible so the board can keep it in a `static`.
@@ -35,8 +83,6 @@ impl SlaveShared {
                     seq: 0,
                     time_us: 0,
                     armed_us: 0,
-                    counts: [0; ENCODER_SLOTS],
-                    abs_code: 0,
                     pose: Pose {
                         x_um: 0,
                         y_um: 0,
@@ -46,6 +92,14 @@ impl SlaveShared {
                     command_ack: 0,
                     rx_rejected: 0,
                     algorithm: protocol::spi::OdometryAlgorithm::Exact,
+                    robot: 0,
+                    source: SensorSource::Ticks,
+                    period_us: 0,
+                    events_next: 0,
+                    reports: protocol::spi::Chunk {
+                        offset: 0,
+                        bytes: protocol::Bytes::new(),
+                    },
                 },
                 pending: None,
                 pose: FixedPose {
@@ -53,6 +107,10 @@ impl SlaveShared {
                     y: 0,
                     theta: 0,
                 },
+                events_rx: ChunkReceiver::new(),
+                events: Ring::new(),
+                events_open: false,
+                reports: ChunkSender::new(),
             })),
         }
     }
@@ -61,9 +119,50 @@ impl SlaveShared {
         self.state.lock(|s| f(&mut s.borrow_mut()))
     }
 
-    /// The frame the master will read next.
+    /// The frame the master will read next (without a report chunk: see
+    /// [`SlaveShared::frame_to_arm`]).
     pub fn frame(&self) -> SlaveFrame {
         self.with(|s| s.frame)
+    }
+
+    /// The frame to arm for the master's next transaction: the odometry fields, the stream
+    /// positions and the next report chunk.
+    pub(crate) fn frame_to_arm(&self) -> SlaveFrame {
+        self.with(|s| SlaveFrame {
+            events_next: s.events_rx.next,
+            reports: s.reports.next_chunk(),
+            ..s.frame
+        })
+    }
+
+    /// Restart both streams at offset 0; `played` opens the event stream. Called by the
+    /// odometry task when it applies a new sensor source, before acknowledging it.
+    pub(crate) fn restart_streams(&self, played: bool) {
+        self.with(|s| {
+            s.events_rx = ChunkReceiver::new();
+            s.events = Ring::new();
+            s.events_open = played;
+            s.reports.reset();
+        });
+    }
+
+    /// Copy up to `out.len()` played event bytes, oldest first, without consuming them.
+    pub(crate) fn peek_events(&self, out: &mut [u8]) -> usize {
+        self.with(|s| s.events.peek(out))
+    }
+
+    pub(crate) fn consume_events(&self, n: usize) {
+        self.with(|s| s.events.consume(n));
+    }
+
+    /// Room in the report stream.
+    pub(crate) fn report_room(&self) -> usize {
+        self.with(|s| s.reports.free())
+    }
+
+    /// Append report bytes (the caller checked the room; what does not fit is dropped).
+    pub(crate) fn push_reports(&self, bytes: &[u8]) -> usize {
+        self.with(|s| s.reports.push(bytes))
     }
 
     /// The latest pose at full precision (the frame rounds to micrometres), in SI units.
@@ -86,9 +185,16 @@ impl SlaveShared {
         });
     }
 
-    /// A valid frame from the master: queue its command unless it was already applied.
+    /// A valid frame from the master: queue its command unless it was already applied, take
+    /// the played events that continue the stream, and drop the reports it acknowledged.
     pub(crate) fn receive(&self, f: &MasterFrame) {
         self.with(|s| {
+            s.reports.on_ack(f.reports_next);
+            if s.events_open {
+                let room = EVENTS_BUFFER - s.events.len;
+                let fresh = s.events_rx.accept(&f.events, room);
+                s.events.push(fresh);
+            }
             if f.command_seq == s.frame.command_ack {
                 return;
             }

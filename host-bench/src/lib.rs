@@ -2,6 +2,7 @@
 //! * [`formats`]: the files a user writes and reads (robot descriptions, tick streams);
 //! * [`sim`]: the simulated robot, trajectories, the tick generator and the two-board emulator;
 //! * [`eval`]: replay, the accuracy suite, reports and plots;
+//! * [`serial`]: the serial link to the boards, `play` and `record`, and what they share;
 //! * [`boards`]: the real boards: their probes and serial ports, bench.toml, flashing.
 //!
 //! The `host-bench` binary (`src/main.rs`, `src/cli/`) is the command line over these.
@@ -9,4 +10,5 @@
 pub mod boards;
 pub mod eval;
 pub mod formats;
+pub mod serial;
 pub mod sim;

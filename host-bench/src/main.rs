@@ -173,6 +173,14 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Play a tick stream into the slave over the serial link and check, update by update,
+    /// that it computes the same poses as the host (docs/bench.md).
+    Play(cli::serial::PlayArgs),
+    /// Record the slave's encoders (and poses) into a tick stream over the serial link.
+    Record(cli::serial::RecordArgs),
+    /// Both boards emulated behind a pseudo-terminal, in real time: prints `port: /dev/pts/N`
+    /// and serves `play` and `record` until killed.
+    VirtualBoard(cli::serial::VirtualBoardArgs),
 }
 
 fn main() -> ExitCode {
@@ -283,5 +291,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             rtt,
             json,
         }),
+        Command::Play(a) => cli::serial::run_play(a),
+        Command::Record(a) => cli::serial::run_record(a),
+        Command::VirtualBoard(a) => cli::serial::run_virtual_board(a),
     }
 }

@@ -210,11 +210,13 @@ pub enum SlaveCommand {
     /// the robot and restarts odometry at the origin (or keeps its robot and raises
     /// [`slave_status::ROBOT_REJECTED`]).
     RobotCommit(crate::robot::RobotHeader),
-    /// Where readings come from and what to report; restarts odometry at the origin with both
+    /// Where readings come from and what to report; restarts odometry at `start` with both
     /// stream offsets at zero.
     SetSource {
         source: SensorSource,
         reports: Reports,
+        /// Where odometry restarts.
+        start: Pose,
     },
 }
 

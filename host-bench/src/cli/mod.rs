@@ -2,4 +2,5 @@
 
 pub mod analyse;
 pub mod flash;
+pub mod serial;
 pub mod sweep;

@@ -5,3 +5,4 @@ pub mod emulator;
 pub mod generate;
 pub mod plant;
 pub mod trajectory;
+pub mod virtual_board;

@@ -174,6 +174,21 @@ pub struct UartLine {
 
 pub type SharedLine = Rc<RefCell<UartLine>>;
 
+impl UartLine {
+    /// Bytes arriving from outside the emulation (a pseudo-terminal): the reader wakes.
+    pub fn deliver(&mut self, bytes: &[u8]) {
+        self.bytes.extend(bytes.iter().copied());
+        if let Some(w) = self.reader.take() {
+            w.wake();
+        }
+    }
+
+    /// Everything that has landed, for a reader outside the emulation.
+    pub fn take_all(&mut self) -> Vec<u8> {
+        self.bytes.drain(..).collect()
+    }
+}
+
 /// Time one byte takes at `baud` with 8N1 framing (10 bits).
 pub fn byte_time(baud: u32) -> Duration {
     Duration::from_micros((10 * 1_000_000u64).div_ceil(baud as u64))

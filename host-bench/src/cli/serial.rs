@@ -1,0 +1,268 @@
+//! The serial-bench commands: `play`, `record`, `virtual-board`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use firmware_slave::played::PlayKind;
+use host_bench::boards::bench_file;
+use host_bench::formats::{robot::Robot, tickstream};
+use host_bench::serial::{link::Link, play, record};
+use host_bench::sim::virtual_board;
+
+/// Where the master's serial link is: --port/--baud, else bench.toml's `[link]`.
+#[derive(Args, Clone, Debug)]
+pub struct PortArgs {
+    /// Serial port of the master's USART1 (a USB-serial adapter, or virtual-board's pty)
+    /// [default: bench.toml's link.port].
+    #[arg(long, value_name = "PORT")]
+    pub port: Option<String>,
+    /// Baud rate; must be the master firmware's (115200 unless rebuilt) [default: bench.toml's,
+    /// else 115200].
+    #[arg(long, value_name = "N")]
+    pub baud: Option<u32>,
+    /// Bench description [default: ./bench.toml if present].
+    #[arg(long, value_name = "FILE")]
+    pub bench: Option<PathBuf>,
+}
+
+impl PortArgs {
+    fn open(&self) -> Result<Link> {
+        let bench = match &self.bench {
+            Some(p) => Some(bench_file::load(p)?),
+            None if Path::new("bench.toml").exists() => {
+                Some(bench_file::load(Path::new("bench.toml"))?)
+            }
+            None => None,
+        };
+        let link = bench.as_ref().and_then(|b| b.link.clone());
+        let Some(port) = self.port.clone().or(link.as_ref().map(|l| l.port.clone())) else {
+            bail!(
+                "no serial port: pass --port PORT (`host-bench probes` lists them) or set \
+                 [link] port in bench.toml (docs/bench.md)"
+            );
+        };
+        let baud = self.baud.or(link.map(|l| l.baud)).unwrap_or(115_200);
+        if baud == 0 {
+            bail!("--baud must be positive");
+        }
+        Link::open(&port, baud)
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct PlayArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// Tick stream to play (docs/tick-stream.md).
+    #[arg(long, value_name = "FILE")]
+    pub ticks: PathBuf,
+    /// Robot description [default: the stream's `# robot:` line].
+    #[arg(long, value_name = "FILE")]
+    pub robot: Option<PathBuf>,
+    /// What the slave is fed: every tick with its time stamp, or count samples at its update
+    /// rate.
+    #[arg(long, default_value = "timestamps", value_parser = ["timestamps", "counts"])]
+    pub sensor: String,
+    /// Odometry method the slave runs (exact, arc, lut, timing).
+    #[arg(long, default_value = "exact")]
+    pub algorithm: String,
+    /// Print the outcome as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Fault injection: damage these Events frames (0-based indices, comma separated) on
+    /// the way out; the link must recover them.
+    #[arg(long, value_name = "K,..", value_delimiter = ',')]
+    pub fault_corrupt_frames: Vec<u64>,
+    /// Fault injection: do not send these Events frames at all.
+    #[arg(long, value_name = "K,..", value_delimiter = ',')]
+    pub fault_drop_frames: Vec<u64>,
+}
+
+pub fn run_play(a: PlayArgs) -> Result<()> {
+    let method = play::method_from_name(&a.algorithm)?;
+    let kind = if a.sensor == "counts" {
+        PlayKind::Counts
+    } else {
+        PlayKind::Ticks
+    };
+    let stream = tickstream::read(&a.ticks)?;
+    let robot_path = match &a.robot {
+        Some(p) => p.clone(),
+        None => stream.robot_path(&a.ticks).with_context(|| {
+            format!(
+                "{}: no `# robot:` line; name the robot with --robot FILE",
+                a.ticks.display()
+            )
+        })?,
+    };
+    let robot = Robot::load(&robot_path)?;
+    let layout = robot.odometry_layout()?;
+    let mut link = a.port.open()?;
+    link.faults.corrupt = a.fault_corrupt_frames.clone();
+    link.faults.drop = a.fault_drop_frames.clone();
+    let bar = progress_bar("{bar:30} {pos}/{len} updates {elapsed}");
+    let outcome = play::play(
+        &mut link,
+        &play::PlayRequest {
+            robot_name: &robot.name,
+            layout: &layout,
+            method,
+            kind,
+            stream: &stream,
+            progress: Some(&bar),
+        },
+    )?;
+    bar.finish_and_clear();
+    if a.json {
+        println!("{}", serde_json::to_string(&outcome)?);
+    } else {
+        let o = &outcome;
+        println!(
+            "{} on {} (robot {} {}), `{}` reading {}",
+            a.ticks.display(),
+            o.port,
+            o.robot,
+            o.robot_fingerprint,
+            o.algorithm,
+            o.sensor
+        );
+        println!(
+            "board vs host  {} of {} updates bit-exact, {} mismatches{}",
+            o.board_updates - o.mismatches,
+            o.expected_updates,
+            o.mismatches,
+            if o.integer_method {
+                " (integer method)"
+            } else {
+                " (float method: same IEEE arithmetic, compared all the same)"
+            }
+        );
+        if let Some(m) = &o.first_mismatch {
+            println!("first mismatch at update {}: board {} host {}", m.update, m.board, m.host);
+        }
+        println!(
+            "stream         {} events, {} wire bytes ({:.2} bytes/event), link {} bytes out / {} in",
+            o.events, o.wire_bytes, o.bytes_per_event, o.link_bytes_sent, o.link_bytes_received
+        );
+        println!(
+            "speed          {:.3} s played in {:.3} s wall ({:.2}x real time)",
+            o.played_seconds, o.wall_seconds, o.played_per_wall_second
+        );
+        match (o.final_error_m, o.max_error_m) {
+            (Some(f), Some(m)) => println!(
+                "vs truth       final error {:.4} mm, max {:.4} mm over {} rows",
+                f * 1e3,
+                m * 1e3,
+                o.truth_rows
+            ),
+            _ => println!("vs truth       the stream has no truth rows"),
+        }
+    }
+    if outcome.mismatches > 0 {
+        bail!(
+            "{} of {} updates differ between the board and the host",
+            outcome.mismatches,
+            outcome.expected_updates
+        );
+    }
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct RecordArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// Tick stream to write (.csv or .csv.gz); the robot file and the board's poses are
+    /// written beside it (STEM.robot.toml, STEM.board.csv).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Seconds to record [default: until Ctrl-C].
+    #[arg(long, value_name = "S")]
+    pub duration: Option<f64>,
+    /// Record every edge with its time stamp, or the counts at the update rate.
+    #[arg(long, default_value = "timestamps", value_parser = ["timestamps", "counts"])]
+    pub sensor: String,
+    /// Load this robot into the slave first [default: the slave's power-on seed 004 robot].
+    #[arg(long, value_name = "FILE")]
+    pub robot: Option<PathBuf>,
+    /// Print the outcome as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run_record(a: RecordArgs) -> Result<()> {
+    if let Some(d) = a.duration {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration must be a positive number of seconds, got {d}");
+        }
+    }
+    let mut link = a.port.open()?;
+    let bar = progress_bar("{spinner} recording {elapsed} {msg}");
+    let outcome = record::record(
+        &mut link,
+        &record::RecordRequest {
+            out: &a.out,
+            duration_s: a.duration,
+            counts: a.sensor == "counts",
+            robot: a.robot.as_deref(),
+            progress: Some(&bar),
+        },
+    )?;
+    bar.finish_and_clear();
+    if a.json {
+        println!("{}", serde_json::to_string(&outcome)?);
+    } else {
+        let o = &outcome;
+        println!(
+            "wrote {} ({} ticks, {} absolute readings, {} truth rows, {:.1} s, stopped by {})",
+            o.out, o.ticks, o.abs_readings, o.truth_rows, o.seconds, o.stopped_by
+        );
+        println!("      {} (robot), {} ({} board poses)", o.robot_file, o.board_poses_file, o.board_poses);
+        if o.lost_events + o.lost_updates > 0 {
+            println!(
+                "GAPS: the slave dropped {} events and {} updates (the link could not keep up)",
+                o.lost_events, o.lost_updates
+            );
+        }
+    }
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct VirtualBoardArgs {
+    /// Seed for the encoders' power-on phase.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Fault injection: answer the handshake with this schema fingerprint (hex) instead of
+    /// the real one, as a board flashed from another version would.
+    #[arg(long, value_name = "HEX")]
+    pub fault_schema: Option<String>,
+}
+
+pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
+    let mut opts = virtual_board::Options {
+        seed: a.seed,
+        ..Default::default()
+    };
+    if let Some(s) = &a.fault_schema {
+        let fp = u32::from_str_radix(s.trim_start_matches("0x"), 16)
+            .with_context(|| format!("--fault-schema {s:?} is not a hex number"))?;
+        opts.faults.schema = Some(fp);
+    }
+    let (pty, _slave_end, name) = virtual_board::open_pty()?;
+    // The first line is the port, for scripts: `port: /dev/pts/N`.
+    println!("port: {name}");
+    use std::io::Write;
+    std::io::stdout().flush()?;
+    eprintln!("virtual board (seed 004 robot driven round a 1 m square) serving; Ctrl-C ends it");
+    virtual_board::serve(pty, &opts, &|| false)
+}
+
+fn progress_bar(template: &str) -> indicatif::ProgressBar {
+    // indicatif draws only on a terminal: piped output stays clean.
+    indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    )
+}

@@ -1,0 +1,320 @@
+//! `host-bench record`: capture what the slave's real encoders see, with the slave's poses,
+//! into a tick stream that `replay` and `play` take.
+//!
+//! The slave streams its raw readings as reports (every edge with its time stamp, or every
+//! count sample, the absolute code when it changes, lost-event counters) and its pose every
+//! few updates; the master relays them. A simulated board (`host-bench virtual-board`) also
+//! sends the true pose, which becomes the stream's truth rows; a real board cannot.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use protocol::events::{Event, EventDecoder};
+use protocol::link::GbnReceiver;
+use protocol::serial::{HostToMaster, MasterToHost};
+use protocol::spi::{Report, Reports, SensorSource};
+use robot_math::odometry::Method;
+use serde::Serialize;
+
+use super::link::Link;
+use super::session;
+use crate::formats::tickstream::{self, Event as Row, TickStream};
+
+/// Board poses in the report stream: one every this many updates.
+pub const POSE_EVERY: u16 = 10;
+
+pub struct RecordRequest<'a> {
+    pub out: &'a Path,
+    pub duration_s: Option<f64>,
+    pub counts: bool,
+    /// The robot file to load into the slave and name in the stream; `None`: the slave's
+    /// power-on robot (seed 004), whose file is written beside the stream.
+    pub robot: Option<&'a Path>,
+    pub progress: Option<&'a indicatif::ProgressBar>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct RecordOutcome {
+    pub out: String,
+    pub robot_file: String,
+    pub board_poses_file: String,
+    pub sensor: String,
+    pub seconds: f64,
+    pub ticks: u64,
+    pub abs_readings: u64,
+    pub truth_rows: u64,
+    pub board_poses: u64,
+    /// Events and updates the slave could not send (the link could not keep up): the
+    /// stream has gaps there, reported in its comments.
+    pub lost_events: u64,
+    pub lost_updates: u64,
+    pub stopped_by: String,
+}
+
+/// The seed 004 robot file, for recordings of the slave's power-on robot.
+const SEED_004_TOML: &str = include_str!("../../../robots/seed004.toml");
+
+struct Collected {
+    rows: Vec<Row>,
+    board: Vec<(u64, protocol::Pose)>,
+    ticks: u64,
+    abs: u64,
+    lost_events: u64,
+    lost_updates: u64,
+    truth: u64,
+}
+
+pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
+    let info = session::hello(link)?;
+    // The robot: the one given (loaded into the slave), or the slave's power-on seed 004.
+    let (robot_text, robot_name) = match req.robot {
+        Some(p) => {
+            let robot = crate::formats::robot::Robot::load(p)?;
+            let layout = robot.odometry_layout()?;
+            session::load_robot(link, &layout)?;
+            (
+                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
+                robot.name,
+            )
+        }
+        None => {
+            let seed = firmware_slave::robot_wire::layout_fingerprint(
+                &robot_math::odometry::Layout::SEED_004,
+            );
+            if info.robot != seed {
+                bail!(
+                    "the slave runs robot {:08x}, not its power-on seed 004 ({seed:08x}): name \
+                     the robot file with --robot FILE",
+                    info.robot
+                );
+            }
+            (SEED_004_TOML.to_string(), "seed004".to_string())
+        }
+    };
+    let method = Method::from_name(&format!("{:?}", info.algorithm).to_lowercase())
+        .unwrap_or(Method::Exact);
+    let source = if req.counts {
+        SensorSource::Counts
+    } else {
+        SensorSource::Ticks
+    };
+    session::set_method_and_source(
+        link,
+        method,
+        source,
+        Reports::Record {
+            pose_every: POSE_EVERY,
+        },
+        protocol::Pose::default(),
+    )?;
+
+    let stop = Arc::new(AtomicBool::new(false));
+    // Ctrl-C ends the recording cleanly: the file is still written whole.
+    signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone())
+        .context("installing the Ctrl-C handler")?;
+    let wall = Instant::now();
+    let mut rx: GbnReceiver<8192> = GbnReceiver::new();
+    let mut bytes: Vec<u8> = Vec::new();
+    let mut c = Collected {
+        rows: Vec::new(),
+        board: Vec::new(),
+        ticks: 0,
+        abs: 0,
+        lost_events: 0,
+        lost_updates: 0,
+        truth: 0,
+    };
+    let mut edges = EventDecoder::new();
+    let period_us = info.period_us.max(1) as u64;
+    let stopped_by;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            stopped_by = "ctrl-c";
+            break;
+        }
+        if req.duration_s.is_some_and(|d| wall.elapsed().as_secs_f64() >= d) {
+            stopped_by = "duration";
+            break;
+        }
+        if let Some(bar) = req.progress {
+            bar.set_message(format!("{} ticks, {} truth rows", c.ticks, c.truth));
+            bar.tick();
+        }
+        let Some(msg) = link.recv(Duration::from_millis(10))? else {
+            continue;
+        };
+        match msg {
+            MasterToHost::Reports(frame) => {
+                rx.on_data(&frame);
+                let mut buf = [0u8; 8192];
+                let n = rx.read(&mut buf);
+                bytes.extend_from_slice(&buf[..n]);
+            }
+            MasterToHost::SimTruth { t_us, pose } => {
+                let (x_m, y_m, theta_rad) = pose.to_si();
+                c.rows.push(Row::Truth {
+                    t_ns: t_us * 1000,
+                    x_m,
+                    y_m,
+                    theta_rad,
+                });
+                c.truth += 1;
+            }
+            _ => {}
+        }
+        if let Some(a) = rx.poll_ack() {
+            link.send(&HostToMaster::ReportsAck(a))?;
+        }
+        let mut rest: &[u8] = &bytes;
+        while let Ok((r, tail)) = postcard::take_from_bytes::<Report>(rest) {
+            rest = tail;
+            take_report(r, &mut c, &mut edges)?;
+        }
+        let used = bytes.len() - rest.len();
+        bytes.drain(..used);
+    }
+    let seconds = wall.elapsed().as_secs_f64();
+    session::set_method_and_source(
+        link,
+        method,
+        SensorSource::Ticks,
+        Reports::Off,
+        protocol::Pose::default(),
+    )
+    .context("switching the slave back to its own sensors")?;
+    write(req, &robot_text, &robot_name, c, seconds, period_us, stopped_by)
+}
+
+/// One report record into the collection. In counts mode the slave reports each update's
+/// count changes as that many ticks at the update instant, so both modes decode alike.
+fn take_report(r: Report, c: &mut Collected, edges: &mut EventDecoder) -> Result<()> {
+    match r {
+        Report::Sensors(b) => {
+            let mut err = None;
+            edges.feed(b.as_slice(), |e| match e {
+                Ok(Event::Tick { t_us, encoder, step }) => {
+                    c.ticks += 1;
+                    c.rows.push(Row::Tick {
+                        t_ns: t_us * 1000,
+                        encoder: encoder as u16,
+                        step: step.delta(),
+                    });
+                }
+                Ok(Event::Abs { t_us, code }) => {
+                    c.abs += 1;
+                    c.rows.push(Row::Abs {
+                        t_ns: t_us * 1000,
+                        encoder: 0,
+                        code: code as u32,
+                    });
+                }
+                Err(e) => err = Some(e),
+            });
+            if let Some(e) = err {
+                bail!("the slave's sensor report did not decode: {e:?}");
+            }
+        }
+        Report::PoseAt { t_us, pose } => c.board.push((t_us * 1000, pose)),
+        Report::Lost { events, updates } => {
+            c.lost_events += events as u64;
+            c.lost_updates += updates as u64;
+        }
+        Report::Pose { .. } | Report::BadEvents { .. } => {}
+    }
+    Ok(())
+}
+
+fn write(
+    req: &RecordRequest,
+    robot_text: &str,
+    robot_name: &str,
+    mut c: Collected,
+    seconds: f64,
+    period_us: u64,
+    stopped_by: &str,
+) -> Result<RecordOutcome> {
+    if c.rows.iter().all(|r| matches!(r, Row::Truth { .. })) {
+        bail!(
+            "nothing recorded in {seconds:.1} s: no encoder event reached the host (is the \
+             slave in a sensor mode that reports? {} truth rows, {} board poses)",
+            c.truth,
+            c.board.len()
+        );
+    }
+    // One clock for everything (the slave's), starting at the first row.
+    c.rows.sort_by_key(|r| r.t_ns());
+    let t0 = c.rows[0].t_ns().min(c.board.first().map_or(u64::MAX, |b| b.0));
+    for r in &mut c.rows {
+        match r {
+            Row::Tick { t_ns, .. } | Row::Abs { t_ns, .. } | Row::Truth { t_ns, .. } => {
+                *t_ns -= t0
+            }
+        }
+    }
+    let out = req.out;
+    let stem = out
+        .file_name()
+        .and_then(|n| n.to_str())
+        .map(|n| n.trim_end_matches(".gz").trim_end_matches(".csv").to_string())
+        .unwrap_or_else(|| "recording".into());
+    let dir = out.parent().unwrap_or(Path::new(""));
+    let robot_file = format!("{stem}.robot.toml");
+    let board_file = dir.join(format!("{stem}.board.csv"));
+    let mut comments = vec![
+        format!("robot: {robot_file}"),
+        format!("recorded by host-bench record from robot {robot_name} ({stopped_by} after {seconds:.3} s)"),
+        if req.counts {
+            format!(
+                "sensor: counts@{}Hz; each sample's count change is written as that many ticks \
+                 at the sample instant (replay with --counts-rate {})",
+                1_000_000 / period_us,
+                1_000_000 / period_us
+            )
+        } else {
+            "sensor: timestamps (every edge, time-stamped by the slave in microseconds)".into()
+        },
+    ];
+    if c.lost_events > 0 || c.lost_updates > 0 {
+        comments.push(format!(
+            "GAPS: the link could not keep up; the slave dropped {} encoder events and {} \
+             updates (the counts after a gap are off by what was dropped)",
+            c.lost_events, c.lost_updates
+        ));
+    }
+    let stream = TickStream {
+        robot: Some(robot_file.clone()),
+        comments,
+        events: c.rows,
+    };
+    crate::formats::atomic::write_atomically(&dir.join(&robot_file), |f| {
+        f.write_all(robot_text.as_bytes())?;
+        Ok(())
+    })?;
+    let mut poses = String::from("t_ns,x_m,y_m,theta_rad\n");
+    for (t, p) in &c.board {
+        let (x, y, th) = p.to_si();
+        poses.push_str(&format!("{},{x},{y},{th}\n", t.saturating_sub(t0)));
+    }
+    crate::formats::atomic::write_atomically(&board_file, |f| {
+        f.write_all(poses.as_bytes())?;
+        Ok(())
+    })?;
+    tickstream::write(out, &stream)?;
+    Ok(RecordOutcome {
+        out: out.display().to_string(),
+        robot_file: dir.join(&robot_file).display().to_string(),
+        board_poses_file: PathBuf::from(&board_file).display().to_string(),
+        sensor: if req.counts { "counts" } else { "timestamps" }.into(),
+        seconds,
+        ticks: c.ticks,
+        abs_readings: c.abs,
+        truth_rows: c.truth,
+        board_poses: c.board.len() as u64,
+        lost_events: c.lost_events,
+        lost_updates: c.lost_updates,
+        stopped_by: stopped_by.into(),
+    })
+}

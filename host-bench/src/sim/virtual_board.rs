@@ -1,0 +1,252 @@
+//! `host-bench virtual-board`: both boards' firmware, emulated as `emulate` does, behind a
+//! pseudo-terminal, in real time, so `play` and `record` talk to it exactly as to real boards.
+//!
+//! ```text
+//!  play/record ── /dev/pts/N ══ pty ══ bridge ── UartLine x2 (115200 8N1) ──► firmware_master::run ── SpiWire ──► firmware_slave::run
+//!                                        │ (SimTruth every 10 ms)                                               ▲ encoders, absolute encoder
+//!                                        └────────────── Plant (seed 004's robot, driven round a square) ───────┘
+//! ```
+//! The simulated robot is driven round a 1 m square course by the virtual board itself, as if
+//! pushed by hand (the master gets no goal, and its motor outputs go nowhere), so `record`
+//! has something to record. Only a simulated board can send the truth; it does, as
+//! [`MasterToHost::SimTruth`] frames between the master's own.
+
+use std::cell::RefCell;
+use std::io::{ErrorKind, Read, Write};
+use std::rc::Rc;
+use std::time::{Duration as WallDuration, Instant as WallInstant};
+
+use anyhow::{Context, Result};
+use embassy_time::{Duration, Instant};
+use firmware_master::{ports::MotorDrivers, MasterConfig, MasterShared};
+use firmware_slave::{SlaveConfig, SlaveShared};
+use protocol::serial::{self, FrameDecoder, MasterToHost};
+use rand::{Rng, SeedableRng};
+use robot_math::omni3::Omni3;
+use robot_math::pursuit::field_to_body;
+use robot_math::{Pose2, Twist};
+use serialport::TTYPort;
+use virtual_time::Simulation;
+
+use super::emulator::hw::*;
+use super::plant::{Plant, PlantConfig};
+
+/// Fault knobs of the virtual board (for tests of the host's checks).
+#[derive(Clone, Debug, Default)]
+pub struct Faults {
+    /// Report this schema fingerprint in the hello reply instead of the real one.
+    pub schema: Option<u32>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub seed: u64,
+    pub slave: SlaveConfig,
+    pub master: MasterConfig,
+    pub faults: Faults,
+    /// Course: side of the square, metres, and speed, m/s.
+    pub course_side: f64,
+    pub course_speed: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            seed: 1,
+            slave: SlaveConfig::DEFAULT,
+            master: MasterConfig::DEFAULT,
+            faults: Faults::default(),
+            course_side: 1.0,
+            course_speed: 0.3,
+        }
+    }
+}
+
+/// The master's motor outputs on the virtual board: kept, applied to nothing.
+struct Unconnected;
+
+impl MotorDrivers for Unconnected {
+    fn set_duty(&mut self, _duty: [i16; 3]) {}
+    fn stop(&mut self) {}
+}
+
+/// Drives the plant round a square with seed 003's inverse kinematics, holding heading 0.
+struct Course {
+    corners: [(f64, f64); 4],
+    next: usize,
+    speed: f64,
+    drive: Omni3,
+    speed_at_full_duty: f64,
+}
+
+impl Course {
+    fn duty(&mut self, body: Pose2) -> [i16; 3] {
+        let (cx, cy) = self.corners[self.next];
+        let (dx, dy) = (cx - body.x, cy - body.y);
+        let dist = dx.hypot(dy);
+        if dist < 0.01 {
+            self.next = (self.next + 1) % self.corners.len();
+        }
+        let v = self.speed.min(dist * 4.0).max(0.05);
+        let (vx, vy) = (v * dx / dist.max(1e-9), v * dy / dist.max(1e-9));
+        let (bx, by) = field_to_body(vx, vy, body.theta);
+        let omega = -2.0 * robot_math::se2::wrap_angle(body.theta);
+        let (w, _) = self.drive.wheel_speeds_saturated(Twist::new(bx, by, omega));
+        w.map(|s| ((s / self.speed_at_full_duty) * 1000.0).round().clamp(-1000.0, 1000.0) as i16)
+    }
+}
+
+/// Open the pseudo-terminal pair; the returned name is what `play --port` opens.
+pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
+    let (mut master, slave) = TTYPort::pair().context("cannot open a pseudo-terminal pair")?;
+    let name = slave
+        .name()
+        .context("the pseudo-terminal has no name")?;
+    // Short timeouts: the bridge polls, and a host that is not reading must not stall it.
+    serialport::SerialPort::set_timeout(&mut master, WallDuration::from_millis(1))?;
+    Ok((master, slave, name))
+}
+
+/// Serve on `pty` until `stop` says so (forever for the CLI).
+pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Result<()> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
+    let drive = Omni3::new(opts.master.wheel_distance, opts.master.v_max)
+        .context("drive geometry: wheel distance and v_max must be positive")?;
+    let plant_cfg = PlantConfig {
+        drive,
+        speed_at_full_duty: opts.master.speed_at_full_duty,
+        motor_tau: 0.05,
+        carriage: robot_math::carriage::CarriageGeometry::SEED_004,
+    };
+    let plant: SharedPlant = Rc::new(RefCell::new(Plant::new(
+        plant_cfg,
+        Pose2::new(0.0, 0.0, 0.0),
+        std::f64::consts::FRAC_PI_2,
+        [rng.random::<f64>(), rng.random::<f64>()],
+    )));
+    let side = opts.course_side;
+    let mut course = Course {
+        corners: [(0.0, side), (side, side), (side, 0.0), (0.0, 0.0)],
+        next: 0,
+        speed: opts.course_speed,
+        drive,
+        speed_at_full_duty: opts.master.speed_at_full_duty,
+    };
+    let slave_shared = SlaveShared::new();
+    let master_shared = MasterShared::new();
+    let wire = Rc::new(RefCell::new(SpiWire::default()));
+    let to_master: SharedLine = Rc::default();
+    let to_host: SharedLine = Rc::default();
+    let byte_time = byte_time(opts.master.baud);
+    let mut sim = Simulation::new()?;
+    sim.spawn(async {
+        firmware_slave::run(
+            EmuCounters(plant.clone()),
+            EmuEdges(plant.clone()),
+            EmuAbsEncoder(plant.clone()),
+            EmuSlaveSpi(wire.clone()),
+            &slave_shared,
+            &opts.slave,
+        )
+        .await;
+    });
+    sim.spawn(async {
+        firmware_master::run(
+            EmuMasterBus {
+                wire: wire.clone(),
+                transfer_time: spi_transfer_time(2_250_000),
+            },
+            UartRx(to_master.clone()),
+            UartTx {
+                line: to_host.clone(),
+                byte_time,
+            },
+            Unconnected,
+            &master_shared,
+            &opts.master,
+        )
+        .await;
+    });
+
+    let wall = WallInstant::now();
+    let plant_step = Duration::from_micros(100);
+    let course_every = Duration::from_millis(10);
+    let mut next_course = Instant::from_ticks(0);
+    let mut next_truth = Instant::from_ticks(0);
+    let mut rewrite = FrameDecoder::new();
+    let mut buf = [0u8; 4096];
+    sim.run_until_idle();
+    while !stop() {
+        // Catch the virtual clock up with the wall clock.
+        let target = Instant::from_micros(wall.elapsed().as_micros() as u64);
+        while sim.now() < target {
+            let now = sim.now();
+            if now >= next_course {
+                let body = plant.borrow().body();
+                let d = course.duty(body);
+                plant.borrow_mut().set_duty(d);
+                next_course = now + course_every;
+            }
+            let mut next = (now + plant_step).min(target).min(next_course);
+            if let Some(d) = sim.next_deadline() {
+                next = next.min(d.max(now));
+            }
+            plant
+                .borrow_mut()
+                .advance((next - now).as_micros() as f64 * 1e-6, 100e-6);
+            sim.run_until(next);
+        }
+        // Host -> master: whatever the pty has.
+        match pty.read(&mut buf) {
+            Ok(n) if n > 0 => to_master.borrow_mut().deliver(&buf[..n]),
+            Ok(_) => {}
+            Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            Err(e) => return Err(e).context("reading the pseudo-terminal"),
+        }
+        // Master -> host, and the truth every 10 ms.
+        let mut out = to_host.borrow_mut().take_all();
+        if let Some(fp) = opts.faults.schema {
+            out = with_schema(&mut rewrite, &out, fp);
+        }
+        if sim.now() >= next_truth {
+            next_truth = sim.now() + Duration::from_millis(10);
+            let b = plant.borrow().body();
+            let msg = MasterToHost::SimTruth {
+                t_us: sim.now().as_micros(),
+                pose: protocol::Pose::from_si(b.x, b.y, b.theta),
+            };
+            let mut f = [0u8; serial::MAX_FRAME];
+            if let Ok(frame) = serial::encode(&msg, &mut f) {
+                out.extend_from_slice(frame);
+            }
+        }
+        if !out.is_empty() {
+            // Nobody reading: the bytes are lost, as on a UART with nothing attached.
+            let _ = pty.write_all(&out);
+        }
+        std::thread::sleep(WallDuration::from_micros(500));
+    }
+    Ok(())
+}
+
+/// The master's frames with the hello reply's schema fingerprint replaced (fault knob).
+fn with_schema(decoder: &mut FrameDecoder, bytes: &[u8], fp: u32) -> Vec<u8> {
+    let mut out = Vec::with_capacity(bytes.len());
+    for &b in bytes {
+        if let Some(Ok(msg)) = decoder.push::<MasterToHost>(b) {
+            let msg = match msg {
+                MasterToHost::HelloReply(mut info) => {
+                    info.schema_fingerprint = fp;
+                    MasterToHost::HelloReply(info)
+                }
+                m => m,
+            };
+            let mut f = [0u8; serial::MAX_FRAME];
+            if let Ok(frame) = serial::encode(&msg, &mut f) {
+                out.extend_from_slice(frame);
+            }
+        }
+    }
+    out
+}
