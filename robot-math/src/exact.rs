@@ -94,7 +94,7 @@ impl ExactParams {
     /// [`kth`](Self::kth) give them, e.g. shipped over a wire): the same integers give the
     /// same integrator, bit for bit. Entries past `n` must be zero (unused encoders move
     /// nothing); every constant must be below 2^40 in magnitude. Integer-only.
-    pub fn from_raw(
+    pub const fn from_raw(
         n: usize,
         kx: [i64; MAX_ENCODERS],
         ky: [i64; MAX_ENCODERS],
@@ -103,26 +103,32 @@ impl ExactParams {
         if n > MAX_ENCODERS {
             return Err(ExactParamsError::TooManyEncoders);
         }
-        let mut p = ExactParams {
+        let (mut disp_per_count, mut turn_per_count) = (0i64, 0u64);
+        // `while`: this is a `const fn` (seed 004's constants are compiled in).
+        let mut j = 0;
+        while j < MAX_ENCODERS {
+            let ks = [kx[j], ky[j], kth[j]];
+            let mut i = 0;
+            while i < 3 {
+                // `unsigned_abs` so i64::MIN cannot overflow.
+                if ks[i].unsigned_abs() >= MAX_CONSTANT as u64 || (j >= n && ks[i] != 0) {
+                    return Err(ExactParamsError::OutOfRange);
+                }
+                i += 1;
+            }
+            let (ax, ay) = (kx[j].abs(), ky[j].abs());
+            disp_per_count += if ax > ay { ax } else { ay };
+            turn_per_count += kth[j].unsigned_abs();
+            j += 1;
+        }
+        Ok(ExactParams {
             n,
             kx,
             ky,
             kth,
-            disp_per_count: 0,
-            turn_per_count: 0,
-        };
-        for j in 0..MAX_ENCODERS {
-            let used = j < n;
-            for k in [kx[j], ky[j], kth[j]] {
-                // `unsigned_abs` so i64::MIN cannot overflow.
-                if k.unsigned_abs() >= MAX_CONSTANT as u64 || (!used && k != 0) {
-                    return Err(ExactParamsError::OutOfRange);
-                }
-            }
-            p.disp_per_count += kx[j].abs().max(ky[j].abs());
-            p.turn_per_count += kth[j].unsigned_abs();
-        }
-        Ok(p)
+            disp_per_count,
+            turn_per_count,
+        })
     }
 
     /// Body x displacement per count of each encoder, Q44 metres (zero past the encoders).

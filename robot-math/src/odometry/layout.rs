@@ -280,10 +280,46 @@ impl Layout {
     }
 
     /// Seed 004's sensors ([`CarriageGeometry::SEED_004`] and the E6CP-AG5C, 8-bit Gray,
-    /// active-low): the slave's compiled-in power-on default. `None` only if robot-math's own
-    /// constants were broken (a test pins that they are not).
-    pub fn seed_004() -> Option<Layout> {
-        Self::from_carriage(&CarriageGeometry::SEED_004, AbsLayout::E6CP_AG5C).ok()
+    /// active-low): the slave's compiled-in power-on default. The integer constants are what
+    /// [`Layout::from_carriage`] derives for it (a test pins that they are), written out so
+    /// the layout is a `const` and the board derives nothing at boot.
+    pub const SEED_004: Layout = {
+        const G: CarriageGeometry = CarriageGeometry::SEED_004;
+        const HALF: f64 = G.wheel_base / 2.0;
+        let exact = match ExactParams::from_raw(
+            2,
+            [287_851_471, 287_851_471, 0, 0],
+            [0; MAX_ENCODERS],
+            [-7_330_077_519, 7_330_077_519, 0, 0],
+        ) {
+            Ok(p) => p,
+            // Evaluated at compile time: a broken constant fails the build, not the board.
+            Err(_) => panic!("seed 004's exact constants are out of range"),
+        };
+        // On the axle through the carriage origin, rolling along +x (`Wheel::at(0, ±L/2, 0)`).
+        const LEFT: Wheel = Wheel {
+            x: 0.0,
+            y: HALF,
+            ux: 1.0,
+            uy: 0.0,
+        };
+        const RIGHT: Wheel = Wheel { y: -HALF, ..LEFT };
+        Layout {
+            encoders: 2,
+            wheels: [LEFT, RIGHT, NO_WHEEL, NO_WHEEL],
+            metres_per_count: [G.metres_per_count[0], G.metres_per_count[1], 0.0, 0.0],
+            exact,
+            carriage: Some(CarriageLayout {
+                trail_m: G.trail,
+                trail_q40: 65_970_697_667,
+            }),
+            abs: Some(AbsLayout::E6CP_AG5C),
+        }
+    };
+
+    /// [`Layout::SEED_004`].
+    pub fn seed_004() -> Layout {
+        Self::SEED_004
     }
 
     /// Number of incremental encoders (2..=4).

@@ -35,7 +35,7 @@ fn triangle() -> Layout {
 }
 
 fn seed_004() -> Layout {
-    Layout::seed_004().expect("robot-math's seed 004 constants are valid")
+    Layout::seed_004()
 }
 
 #[test]
@@ -445,4 +445,14 @@ fn the_estimator_fits_the_slaves_ram() {
         // Host sizes (8-byte usize); the board's are a little smaller.
         assert!(size <= 2048, "{size}");
     }
+}
+
+#[test]
+fn seed_004_constants_are_what_the_geometry_gives() {
+    let derived = Layout::from_carriage(&CarriageGeometry::SEED_004, AbsLayout::E6CP_AG5C).unwrap();
+    assert_eq!(Layout::SEED_004, derived);
+    assert_eq!(
+        Layout::seed_004().differential_drive().map(|d| d.1),
+        Some(0.2)
+    );
 }
