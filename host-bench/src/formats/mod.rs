@@ -2,5 +2,6 @@
 //! (`docs/tick-stream.md`), each read strictly (every error names its line) and written
 //! atomically.
 
+pub mod odometry_layout;
 pub mod robot;
 pub mod tickstream;

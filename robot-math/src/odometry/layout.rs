@@ -356,7 +356,7 @@ impl Layout {
     }
 
     /// With a carriage: its float geometry (for the float methods' body pose).
-    pub(crate) fn carriage_geometry(&self) -> Option<CarriageGeometry> {
+    pub fn carriage_geometry(&self) -> Option<CarriageGeometry> {
         let c = self.carriage?;
         Some(CarriageGeometry {
             wheel_base: self.wheels[0].y - self.wheels[1].y,
