@@ -23,6 +23,14 @@ ROOTS = [
     # The slave's default: seed 004's carriage on the exact integrator.
     "robot_math::carriage::CarriageExact::update",
     "robot_math::carriage::CarriageExact::set_body",
+    # The one odometry layer (robot_math::odometry::Odometry) running `exact`: what its
+    # public `tick`, `update` and `set_pose` run for that method, and the readings' setters.
+    "robot_math::odometry::estimator::Odometry::update_exact",
+    "robot_math::odometry::estimator::Odometry::set_pose_exact",
+    "robot_math::odometry::estimator::Odometry::record_tick",
+    "robot_math::odometry::estimator::Odometry::set_counts",
+    "robot_math::odometry::estimator::Odometry::set_abs",
+    "robot_math::odometry::layout::AbsLayout::decode",
     # Tick-timestamp mode: edge decoding and interpolation to the update instant.
     "robot_math::sensors::QuadratureDecoder::edge",
     "robot_math::ticks::TickTracker::tick",

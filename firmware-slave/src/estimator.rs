@@ -1,198 +1,253 @@
-//! The slave's odometry, switchable between methods at run time (SPEC §3: users compare them on
-//! the same robot). A switch continues from the current pose, so the robot does not jump.
+//! The slave's odometry as a function of its inputs: decoded edges, sampled counters, the
+//! absolute encoder and the master's commands in; the pose and status bits out.
 //!
-//! * `Exact` (default): integer-only. With tick time stamps it is fed every wheel's position
-//!   interpolated to the sample instant; with counters only, whole counts.
-//! * `Arc` (seed 004) and `Lut` (seed 001, on the carriage, itself a differential drive): whole
-//!   counts each sample, in floats (slow without an FPU, but they are the papers' baselines).
-//! * `Timing` (seed 000): every tick with its time, so only in tick-timestamp mode.
+//! [`SlaveEstimator`] wraps robot-math's one odometry layer ([`Odometry`]) with what the slave
+//! adds around it: quadrature decoding of the edges, the cross-check of the decoded counts
+//! against the hardware counters, the wire's algorithm codes and the sticky
+//! "unsupported algorithm" flag. The odometry task feeds it from the board's ports; any other
+//! sensor source (e.g. played-back events) can feed the same path.
 
-use protocol::spi::OdometryAlgorithm;
-use robot_math::arc::CarriageArc;
-use robot_math::carriage::{CarriageExact, CarriageGeometry};
-use robot_math::exact::FixedPose;
-use robot_math::lut::LutOdometry;
-use robot_math::ticks::counts_as_ticks;
-use robot_math::timing::TimingOdometry;
-use robot_math::wheel::Wheel;
-use robot_math::Pose2;
+use protocol::spi::{slave_status, OdometryAlgorithm, SlaveCommand, ENCODER_SLOTS};
+use robot_math::exact::{FixedPose, MAX_ENCODERS};
+use robot_math::odometry::{Layout, Method, Odometry, SensorKind, Unsupported};
+use robot_math::sensors::{Quadrature, QuadratureDecoder};
 
-/// What the sensors say at one fixed-rate update.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Sample {
-    /// Cumulative whole counts of the two measuring wheels.
-    pub counts: [i64; 2],
-    /// The wheels' positions in Q16 counts: interpolated between ticks in tick-timestamp
-    /// mode, the whole counts otherwise.
-    pub q16: [i64; 2],
-    /// Slave clock, nanoseconds.
-    pub t_ns: u64,
-    /// Absolute encoder code.
-    pub code: u16,
-}
+use crate::ports::EncoderEdge;
+use crate::SensorMode;
 
-// One instance lives in the odometry task's future (no heap on the board); the size gap
-// between the float and the integer methods costs RAM once, not per update.
-#[allow(clippy::large_enum_variant)]
-enum Method {
-    Exact(CarriageExact),
-    Arc(CarriageArc),
-    Lut(CarriageLut),
-    Timing(CarriageTiming),
-}
-
-/// Seed 001's method on the carriage's two wheels; the body follows through the swivel.
-struct CarriageLut {
-    odo: LutOdometry,
-    applied: [i64; 2],
-}
-
-impl CarriageLut {
-    fn new(geom: &CarriageGeometry, body: Pose2, s: &Sample) -> Self {
-        let carriage = geom.carriage_pose(body, geom.swivel_angle(s.code));
-        CarriageLut {
-            odo: LutOdometry::new(geom.metres_per_count[0], geom.wheel_base, carriage),
-            applied: s.counts,
-        }
-    }
-
-    fn update(&mut self, geom: &CarriageGeometry, s: &Sample) -> Pose2 {
-        // The count changes since the last sample, as ticks, the two wheels interleaved.
-        // Wheel 0 is the left wheel in both conventions.
-        counts_as_ticks(&mut self.applied, &s.counts, |wheel, step| {
-            self.odo.tick(wheel as u8, step)
-        });
-        geom.body_pose(self.odo.pose(), geom.swivel_angle(s.code))
+/// The wire's algorithm code for a method (1:1).
+pub fn algorithm_of(method: Method) -> OdometryAlgorithm {
+    match method {
+        Method::Exact => OdometryAlgorithm::Exact,
+        Method::Arc => OdometryAlgorithm::Arc,
+        Method::Lut => OdometryAlgorithm::Lut,
+        Method::Timing => OdometryAlgorithm::Timing,
     }
 }
 
-/// Seed 000's method on the carriage's two wheels (the axle solver; wheel A is the left one).
-struct CarriageTiming {
-    odo: TimingOdometry,
-}
-
-impl CarriageTiming {
-    fn new(geom: &CarriageGeometry, body: Pose2, s: &Sample) -> Option<Self> {
-        let half = geom.wheel_base / 2.0;
-        let wheels = [Wheel::at(0.0, half, 0.0), Wheel::at(0.0, -half, 0.0)];
-        let carriage = geom.carriage_pose(body, geom.swivel_angle(s.code));
-        let mut odo =
-            TimingOdometry::from_wheels(&wheels, &geom.metres_per_count, carriage).ok()?;
-        // The switch instant is where its integration starts.
-        odo.update(s.t_ns);
-        Some(CarriageTiming { odo })
+/// The method a wire algorithm code asks for (1:1).
+pub fn method_of(algorithm: OdometryAlgorithm) -> Method {
+    match algorithm {
+        OdometryAlgorithm::Exact => Method::Exact,
+        OdometryAlgorithm::Arc => Method::Arc,
+        OdometryAlgorithm::Lut => Method::Lut,
+        OdometryAlgorithm::Timing => Method::Timing,
     }
 }
 
-pub(crate) struct SlaveOdometry {
-    geom: CarriageGeometry,
-    method: Method,
-    pose: FixedPose,
-    /// Whether tick time stamps are available (`Timing` needs them).
-    timestamps: bool,
+/// What one fixed-rate update produced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Update {
+    pub pose: FixedPose,
+    /// [`slave_status`] bits the estimator is responsible for (`EDGES_LOST`,
+    /// `ALGORITHM_UNSUPPORTED`); the caller adds its own (running, overrun, counter jumps).
+    pub status: u16,
+    pub algorithm: OdometryAlgorithm,
 }
 
-impl SlaveOdometry {
-    /// `Exact`, at the origin. `None` for an impossible geometry.
-    pub fn new(geom: CarriageGeometry, s: &Sample, timestamps: bool) -> Option<Self> {
-        let exact = CarriageExact::new(&geom, Pose2::default(), s.counts, s.code)?;
-        Some(SlaveOdometry {
-            geom,
-            pose: exact.body(),
-            method: Method::Exact(exact),
-            timestamps,
+/// The slave's odometry over up to [`ENCODER_SLOTS`] encoders.
+pub struct SlaveEstimator {
+    odometry: Odometry,
+    decoders: [QuadratureDecoder; ENCODER_SLOTS],
+    /// Status bits gathered since the last update.
+    pending: u16,
+    /// Sticky until the next successful switch: the host asked for something this slave lacks.
+    unsupported: bool,
+}
+
+fn slots<T: Copy + Default>(values: &[T]) -> [T; MAX_ENCODERS] {
+    let mut out = [T::default(); MAX_ENCODERS];
+    for (o, v) in out.iter_mut().zip(values) {
+        *o = *v;
+    }
+    out
+}
+
+impl SlaveEstimator {
+    /// `exact` at the origin at `t_ns`, the encoders at `counts`, their A/B channels at
+    /// `edge_levels` (where edge decoding starts), the absolute encoder's pins at
+    /// `abs_levels`. Uses floats once (the layout's float methods are not started).
+    pub fn new(
+        layout: &Layout,
+        sensor: SensorMode,
+        t_ns: u64,
+        counts: &[i64],
+        edge_levels: &[u8],
+        abs_levels: u16,
+    ) -> Result<Self, Unsupported> {
+        let kind = match sensor {
+            SensorMode::Counts => SensorKind::Counts,
+            SensorMode::TickTimestamps => SensorKind::Ticks,
+        };
+        let odometry = Odometry::new(
+            layout,
+            Method::Exact,
+            kind,
+            FixedPose::default(),
+            t_ns,
+            slots(counts),
+            Some(abs_levels),
+        )?;
+        let levels = slots(edge_levels);
+        Ok(SlaveEstimator {
+            odometry,
+            decoders: core::array::from_fn(|j| QuadratureDecoder::new(levels[j])),
+            pending: 0,
+            unsupported: false,
         })
     }
 
+    /// One recorded encoder edge (tick-timestamp mode), in time order.
+    pub fn on_edge(&mut self, e: EncoderEdge) {
+        let w = e.encoder as usize;
+        let Some(decoder) = self.decoders.get_mut(w) else {
+            return;
+        };
+        match decoder.edge(e.levels) {
+            Quadrature::Step(step) => self.odometry.tick(e.t_us * 1000, w, step),
+            Quadrature::Missed => self.pending |= slave_status::EDGES_LOST,
+            Quadrature::None => {}
+        }
+    }
+
+    /// The edge source says edges were lost (a full queue).
+    pub fn edges_lost(&mut self) {
+        self.pending |= slave_status::EDGES_LOST;
+    }
+
+    /// One fixed-rate update at `t_ns`.
+    ///
+    /// * `counters`: the hardware counters' totals. In counts mode they are the input; in
+    ///   tick-timestamp mode, when `counters_match_edges` (read together with the edges
+    ///   handed over so far, no edge in between), they are checked against the decoded
+    ///   counts: a difference means an edge was lost (or invented) on the interrupt path.
+    /// * `abs_levels`: the absolute encoder's pins.
+    /// * `command`: the master's command, applied after the readings, before the update.
+    pub fn sample(
+        &mut self,
+        t_ns: u64,
+        counters: &[i64],
+        counters_match_edges: bool,
+        abs_levels: u16,
+        command: Option<SlaveCommand>,
+    ) -> Update {
+        let mut status = core::mem::take(&mut self.pending);
+        let hardware = slots(counters);
+        match self.odometry.sensors() {
+            SensorKind::Counts => self.odometry.set_counts(hardware),
+            SensorKind::Ticks => {
+                let n = self.odometry.layout().encoders().min(counters.len());
+                let decoded = self.odometry.counts();
+                if counters_match_edges && decoded[..n] != hardware[..n] {
+                    status |= slave_status::EDGES_LOST;
+                }
+            }
+        }
+        self.odometry.set_abs(abs_levels);
+        match command {
+            Some(SlaveCommand::SetPose(p)) => {
+                let pose = FixedPose::from_micrometres(p.x_um, p.y_um, p.heading.0);
+                self.odometry.set_pose(pose, t_ns);
+            }
+            Some(SlaveCommand::SetAlgorithm(a)) => {
+                self.unsupported = self.odometry.switch(method_of(a), t_ns).is_err();
+            }
+            Some(SlaveCommand::None) | None => {}
+        }
+        let pose = self.odometry.update(t_ns);
+        if self.unsupported {
+            status |= slave_status::ALGORITHM_UNSUPPORTED;
+        }
+        Update {
+            pose,
+            status,
+            algorithm: algorithm_of(self.odometry.method()),
+        }
+    }
+
+    /// The running method's wire code.
     pub fn algorithm(&self) -> OdometryAlgorithm {
-        match self.method {
-            Method::Exact(_) => OdometryAlgorithm::Exact,
-            Method::Arc(_) => OdometryAlgorithm::Arc,
-            Method::Lut(_) => OdometryAlgorithm::Lut,
-            Method::Timing(_) => OdometryAlgorithm::Timing,
+        algorithm_of(self.odometry.method())
+    }
+
+    /// The decoded (tick mode) or sampled (counts mode) whole counts.
+    pub fn counts(&self) -> [i64; MAX_ENCODERS] {
+        self.odometry.counts()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robot_math::sensors::binary_to_gray;
+
+    fn abs_levels(position: u16) -> u16 {
+        !binary_to_gray(position) & 0xFF
+    }
+
+    #[test]
+    fn algorithm_codes_map_one_to_one() {
+        for m in Method::ALL {
+            assert_eq!(method_of(algorithm_of(m)), m);
         }
     }
 
-    /// A decoded tick, as it happened (only `Timing` uses individual ticks).
-    pub fn on_tick(&mut self, t_ns: u64, wheel: usize, step: i8) {
-        if let Method::Timing(t) = &mut self.method {
-            t.odo.tick(t_ns, wheel, step);
-        }
+    #[test]
+    fn timing_on_counts_is_flagged_until_a_supported_switch() {
+        let layout = Layout::SEED_004;
+        let mut est = SlaveEstimator::new(
+            &layout,
+            SensorMode::Counts,
+            0,
+            &[0, 0],
+            &[0, 0],
+            abs_levels(0),
+        )
+        .unwrap();
+        let timing = Some(SlaveCommand::SetAlgorithm(OdometryAlgorithm::Timing));
+        let u = est.sample(1_000_000, &[5, 5], false, abs_levels(0), timing);
+        assert_eq!(u.algorithm, OdometryAlgorithm::Exact);
+        assert_ne!(u.status & slave_status::ALGORITHM_UNSUPPORTED, 0);
+        let u = est.sample(2_000_000, &[6, 6], false, abs_levels(0), None);
+        assert_ne!(u.status & slave_status::ALGORITHM_UNSUPPORTED, 0, "sticky");
+        let arc = Some(SlaveCommand::SetAlgorithm(OdometryAlgorithm::Arc));
+        let u = est.sample(3_000_000, &[7, 7], false, abs_levels(0), arc);
+        assert_eq!(u.algorithm, OdometryAlgorithm::Arc);
+        assert_eq!(u.status & slave_status::ALGORITHM_UNSUPPORTED, 0);
+        // Straight ahead along the carriage (swivel 0): x grows by 7 counts' travel.
+        let x = u.pose.to_pose2().x;
+        let k = layout.metres_per_count()[0];
+        assert!((x - 7.0 * k).abs() < 1e-9, "{x}");
     }
 
-    /// One fixed-rate update. On the default (`Exact`) path this is integer-only.
-    pub fn update(&mut self, s: &Sample) -> FixedPose {
-        let geom = &self.geom;
-        self.pose = match &mut self.method {
-            Method::Exact(e) => e.update_q16(s.q16, s.code),
-            Method::Arc(a) => FixedPose::from_pose2(a.update(s.counts.map(|c| c as f64), s.code)),
-            Method::Lut(l) => FixedPose::from_pose2(l.update(geom, s)),
-            Method::Timing(t) => {
-                let c = t.odo.update(s.t_ns);
-                FixedPose::from_pose2(geom.body_pose(c, geom.swivel_angle(s.code)))
-            }
-        };
-        self.pose
-    }
-
-    /// Restart from `pose` at the current sensor readings.
-    pub fn set_pose(&mut self, pose: FixedPose, s: &Sample) {
-        let body = pose.to_pose2();
-        match &mut self.method {
-            Method::Exact(e) => {
-                // Take in the counts up to now first, so they are not applied after the reset.
-                e.update_q16(s.q16, s.code);
-                e.set_body(pose, s.code);
-            }
-            Method::Arc(a) => {
-                if let Some(fresh) =
-                    CarriageArc::new(self.geom, body, s.counts.map(|c| c as f64), s.code)
-                {
-                    *a = fresh;
-                }
-            }
-            Method::Lut(l) => *l = CarriageLut::new(&self.geom, body, s),
-            Method::Timing(t) => {
-                if let Some(fresh) = CarriageTiming::new(&self.geom, body, s) {
-                    *t = fresh;
-                }
-            }
+    #[test]
+    fn decoded_edges_are_checked_against_matching_counters() {
+        let layout = Layout::SEED_004;
+        let levels = [QuadratureDecoder::levels_at(0); 2];
+        let mut est = SlaveEstimator::new(
+            &layout,
+            SensorMode::TickTimestamps,
+            0,
+            &[0, 0],
+            &levels,
+            abs_levels(0),
+        )
+        .unwrap();
+        for (k, t) in [(1i64, 100u64), (2, 200), (3, 300)] {
+            est.on_edge(EncoderEdge {
+                t_us: t,
+                encoder: 0,
+                levels: QuadratureDecoder::levels_at(k),
+            });
         }
-        self.pose = pose;
-    }
-
-    /// Switch method, continuing from the current pose. False if this slave cannot run it
-    /// (`Timing` without tick time stamps).
-    pub fn switch(&mut self, algorithm: OdometryAlgorithm, s: &Sample) -> bool {
-        if algorithm == self.algorithm() {
-            return true;
-        }
-        let here = self.update(s).to_pose2();
-        let next = match algorithm {
-            OdometryAlgorithm::Exact => {
-                CarriageExact::new(&self.geom, here, s.counts, s.code).map(|mut e| {
-                    // Start from the interpolated positions, not the whole counts.
-                    e.update_q16(s.q16, s.code);
-                    e.set_body(FixedPose::from_pose2(here), s.code);
-                    Method::Exact(e)
-                })
-            }
-            OdometryAlgorithm::Arc => {
-                CarriageArc::new(self.geom, here, s.counts.map(|c| c as f64), s.code)
-                    .map(Method::Arc)
-            }
-            OdometryAlgorithm::Lut => Some(Method::Lut(CarriageLut::new(&self.geom, here, s))),
-            OdometryAlgorithm::Timing if self.timestamps => {
-                CarriageTiming::new(&self.geom, here, s).map(Method::Timing)
-            }
-            OdometryAlgorithm::Timing => None,
-        };
-        match next {
-            Some(m) => {
-                self.method = m;
-                true
-            }
-            None => false,
-        }
+        let u = est.sample(1_000_000, &[3, 0], true, abs_levels(0), None);
+        assert_eq!(u.status & slave_status::EDGES_LOST, 0);
+        assert_eq!(est.counts()[..2], [3, 0]);
+        // Counters ahead of the decoded edges: an edge went missing on the interrupt path.
+        let u = est.sample(2_000_000, &[4, 0], true, abs_levels(0), None);
+        assert_ne!(u.status & slave_status::EDGES_LOST, 0);
+        // Not read together with the edges: no verdict.
+        let u = est.sample(3_000_000, &[4, 0], false, abs_levels(0), None);
+        assert_eq!(u.status & slave_status::EDGES_LOST, 0);
     }
 }

@@ -3,11 +3,12 @@
 //! STM32F103 (board layer in `main.rs` + `board/`) and inside the host emulator.
 //!
 //! Two tasks, joined in [`run`]:
-//! * the **odometry task** samples the counters and the absolute encoder on a fixed-rate
-//!   ticker, extends the 16-bit counts to 64-bit totals, integrates the pose and publishes an
-//!   [`protocol::spi::SlaveFrame`]. The integrator is `exact` in fixed point
-//!   ([`robot_math::carriage::CarriageExact`]): integer-only on every update, as the FPU-less
-//!   STM32F103 wants (`scripts/check-no-float.py` proves it from the disassembly);
+//! * the **odometry task** samples the sensors on a fixed-rate ticker (the timers' counters,
+//!   or every time-stamped encoder edge with the counters that match them, and the absolute
+//!   encoder), extends the 16-bit counts to 64-bit totals and hands everything to the
+//!   [`SlaveEstimator`] (robot-math's one odometry layer, `exact` by default: integer-only on
+//!   every update, as the FPU-less STM32F103 wants, `scripts/check-no-float.py` proves it from
+//!   the disassembly), then publishes an [`protocol::spi::SlaveFrame`];
 //! * the **SPI task** arms the latest frame for the master's next poll, and checks and applies
 //!   what the master sent back (commands such as set-pose, acknowledged by sequence number).
 #![cfg_attr(not(test), no_std)]
@@ -18,16 +19,12 @@ mod shared;
 
 use embassy_futures::join::join;
 use embassy_time::{Duration, Instant, Ticker};
-use estimator::SlaveOdometry;
-use protocol::spi::{self, slave_status, MasterFrame, SlaveCommand, SlaveFrame, SPI_FRAME_LEN};
-use robot_math::carriage::CarriageGeometry;
-use robot_math::exact::FixedPose;
-use robot_math::sensors::{gray_to_binary, CounterExtender};
+use protocol::spi::{self, slave_status, MasterFrame, SlaveFrame, ENCODER_SLOTS, SPI_FRAME_LEN};
+use robot_math::odometry::Layout;
+use robot_math::sensors::CounterExtender;
 
-use estimator::Sample;
-use ports::{AbsoluteEncoderPins, EncoderEdges, QuadratureCounters, SpiSlave, MEASURING_WHEELS};
-use robot_math::sensors::{Quadrature, QuadratureDecoder};
-use robot_math::ticks::TickTracker;
+pub use estimator::{algorithm_of, method_of, SlaveEstimator, Update};
+use ports::{AbsoluteEncoderPins, EncoderEdges, QuadratureCounters, SpiSlave};
 pub use shared::SlaveShared;
 
 /// How the slave sees its measuring wheels.
@@ -41,31 +38,29 @@ pub enum SensorMode {
 }
 
 /// How the slave's sensors are built and how often it integrates.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SlaveConfig {
-    pub geometry: CarriageGeometry,
+    /// The sensors' geometry and the integer constants (robot-math's one layout type).
+    pub layout: Layout,
     pub sensor: SensorMode,
     /// Odometry update period (fixed rate).
     pub update_period_us: u32,
-    /// The absolute encoder pulls its outputs low for a 1 bit (open-collector, negative logic,
-    /// as the E6CP-AG5C does): invert the pin levels before Gray decoding.
-    pub abs_inverted: bool,
 }
 
 impl SlaveConfig {
-    /// Seed 004's sensors at 1 kHz.
+    /// THE board configuration (the firmware image and the emulator both run it): seed 004's
+    /// sensors ([`Layout::SEED_004`], the absolute encoder active-low Gray), every encoder
+    /// edge time-stamped (EXTI; the timers still count in hardware and the slave cross-checks
+    /// the two), 1 kHz updates.
     pub const DEFAULT: SlaveConfig = SlaveConfig {
-        geometry: CarriageGeometry::SEED_004,
-        sensor: SensorMode::Counts,
+        layout: Layout::SEED_004,
+        sensor: SensorMode::TickTimestamps,
         update_period_us: 1_000,
-        abs_inverted: true,
     };
 
-    /// The absolute code (binary, `0..2^bits`) the pins stand for.
+    /// The absolute encoder position (`0..2^bits`) the pins stand for (0 without one).
     pub fn abs_code(&self, levels: u8) -> u16 {
-        let bits = if self.abs_inverted { !levels } else { levels };
-        let mask = ((1u32 << self.geometry.abs_bits) - 1) as u16;
-        gray_to_binary(bits as u16 & mask)
+        self.layout.abs().map_or(0, |a| a.decode(levels as u16))
     }
 }
 
@@ -97,18 +92,16 @@ pub async fn odometry_task(
     let period = Duration::from_micros(config.update_period_us as u64);
     let timestamps = config.sensor == SensorMode::TickTimestamps;
     let mut extenders = counters.read_raw().map(CounterExtender::new);
-    let mut decoders = edges.levels().map(QuadratureDecoder::new);
-    let mut ticks = [TickTracker::new(); MEASURING_WHEELS];
-    let start = Sample {
-        counts: [0; MEASURING_WHEELS],
-        q16: [0; MEASURING_WHEELS],
-        t_ns: Instant::now().as_micros() * 1000,
-        code: config.abs_code(abs.read_levels()),
-    };
-    // The integer constants are derived once, here, with (soft) floats; every update after
-    // this is integer-only.
-    let Some(mut odometry) = SlaveOdometry::new(config.geometry, &start, timestamps) else {
-        // An impossible geometry is a build mistake: publish nothing, so the master's
+    let start = SlaveEstimator::new(
+        &config.layout,
+        config.sensor,
+        Instant::now().as_micros() * 1000,
+        &extenders.map(|e| e.total()),
+        &edges.levels(),
+        abs.read_levels() as u16,
+    );
+    let Ok(mut estimator) = start else {
+        // A layout the slave cannot run is a build mistake: publish nothing, so the master's
         // freshness watchdog sees a dead slave and keeps the motors off.
         loop {
             embassy_time::Timer::after_secs(3600).await;
@@ -117,109 +110,77 @@ pub async fn odometry_task(
     let mut ticker = Ticker::every(period);
     let mut next_due = Instant::now() + period;
     let mut seq: u16 = 0;
-    // Sticky until the next successful switch: the host asked for something this slave lacks.
-    let mut unsupported = false;
     loop {
         ticker.next().await;
         // Sample first, as close to the tick as possible; everything else can wait.
-        let raw = counters.read_raw();
         let levels = abs.read_levels();
         let now = Instant::now();
         let t_ns = now.as_micros() * 1000;
-
         let mut status = slave_status::RUNNING;
         if now > next_due + period {
             status |= slave_status::OVERRUN;
         }
         next_due = now + period;
-        let mut totals = [0i64; MEASURING_WHEELS];
-        for (i, ext) in extenders.iter_mut().enumerate() {
-            let (total, jumped) = ext.update(raw[i]);
-            totals[i] = total;
+
+        // Tick-timestamp mode: every edge up to one instant, decoded into the estimator, and
+        // the timers as they stood at that instant (so the cross-check compares like with
+        // like); without such a reading, the timers now and no cross-check.
+        let (raw, matched) = if timestamps {
+            let batch = edges.drain(&mut |e| estimator.on_edge(e));
+            if !batch.complete {
+                estimator.edges_lost();
+            }
+            match batch.counters {
+                Some(c) => (c, true),
+                None => (counters.read_raw(), false),
+            }
+        } else {
+            (counters.read_raw(), false)
+        };
+        let mut totals = [0i64; ports::MEASURING_WHEELS];
+        for ((total, ext), raw) in totals.iter_mut().zip(&mut extenders).zip(raw) {
+            let (t, jumped) = ext.update(raw);
+            *total = t;
             if jumped {
                 status |= slave_status::COUNTER_JUMP;
             }
         }
-        let code = config.abs_code(levels);
 
-        // Tick-timestamp mode: every edge since the last update, decoded, into the trackers
-        // (and to the methods that use single ticks), then each wheel interpolated to now.
-        let sample = if timestamps {
-            let complete = edges.drain(&mut |e| {
-                let w = e.encoder as usize;
-                let Some(decoder) = decoders.get_mut(w) else {
-                    return;
-                };
-                match decoder.edge(e.levels) {
-                    Quadrature::Step(step) => {
-                        let t = e.t_us * 1000;
-                        ticks[w].tick(t, step);
-                        odometry.on_tick(t, w, step);
-                    }
-                    Quadrature::Missed => status |= slave_status::EDGES_LOST,
-                    Quadrature::None => {}
-                }
-            });
-            // The timers count the same edges in hardware: if the decoded count ever differs,
-            // an edge was lost (or invented) on the interrupt path.
-            if !complete || ticks.iter().zip(totals).any(|(t, c)| t.count() != c) {
-                status |= slave_status::EDGES_LOST;
-            }
-            Sample {
-                counts: ticks.map(|t| t.count()),
-                q16: ticks.map(|t| t.position_q16(t_ns)),
-                t_ns,
-                code,
-            }
-        } else {
-            Sample {
-                counts: totals,
-                q16: totals.map(|c| c << 16),
-                t_ns,
-                code,
-            }
-        };
-
-        if let Some((command_seq, command)) = shared.take_command() {
-            match command {
-                SlaveCommand::SetPose(p) => {
-                    let pose = FixedPose::from_micrometres(p.x_um, p.y_um, p.heading.0);
-                    odometry.set_pose(pose, &sample);
-                }
-                SlaveCommand::SetAlgorithm(a) => {
-                    unsupported = !odometry.switch(a, &sample);
-                }
-                SlaveCommand::None => {}
-            }
+        let command = shared.take_command();
+        let update = estimator.sample(
+            t_ns,
+            &totals,
+            matched,
+            levels as u16,
+            command.map(|(_, c)| c),
+        );
+        if let Some((command_seq, _)) = command {
             shared.acknowledge(command_seq);
         }
-        let pose = odometry.update(&sample);
-        if unsupported {
-            status |= slave_status::ALGORITHM_UNSUPPORTED;
-        }
+        status |= update.status;
 
         seq = seq.wrapping_add(1);
-        let mut counts = [0i32; spi::ENCODER_SLOTS];
+        let mut counts = [0i32; ENCODER_SLOTS];
         for (slot, total) in counts.iter_mut().zip(totals) {
             // The wire carries the low 32 bits; the master only ever needs differences.
             *slot = total as i32;
         }
-        let (x_um, y_um) = pose.micrometres();
-        let update = SlaveFrame {
+        let (x_um, y_um) = update.pose.micrometres();
+        let frame = SlaveFrame {
             seq,
             time_us: now.as_micros() as u32,
             counts,
-            abs_code: code,
+            abs_code: config.abs_code(levels),
             pose: protocol::Pose {
                 x_um,
                 y_um,
-                heading: protocol::BinaryAngle(pose.heading_bam()),
+                heading: protocol::BinaryAngle(update.pose.heading_bam()),
             },
             status,
-            algorithm: odometry.algorithm(),
+            algorithm: update.algorithm,
             ..SlaveFrame::default()
         };
-        shared.publish(&update, pose);
+        shared.publish(&frame, update.pose);
     }
 }
 
@@ -245,7 +206,7 @@ pub async fn spi_task(mut spi: impl SpiSlave, shared: &SlaveShared) -> ! {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use protocol::spi::MasterFrame;
+    use protocol::spi::{MasterFrame, SlaveCommand};
     use robot_math::sensors::binary_to_gray;
 
     #[test]
@@ -255,10 +216,21 @@ mod tests {
             let levels = !(binary_to_gray(code) as u8);
             assert_eq!(cfg.abs_code(levels), code);
         }
-        let plain = SlaveConfig {
-            abs_inverted: false,
-            ..cfg
+        let mut plain = cfg.clone();
+        let abs = robot_math::odometry::AbsLayout {
+            inverted: false,
+            ..robot_math::odometry::AbsLayout::E6CP_AG5C
         };
+        let layout = &cfg.layout;
+        plain.layout = Layout::from_parts(
+            2,
+            *layout.wheels(),
+            *layout.metres_per_count(),
+            *layout.exact(),
+            layout.carriage(),
+            Some(abs),
+        )
+        .unwrap();
         assert_eq!(plain.abs_code(binary_to_gray(77) as u8), 77);
     }
 

@@ -20,13 +20,9 @@ mod firmware {
     /// it never ends, so it must outlive `main`'s stack frame.
     static SHARED: SlaveShared = SlaveShared::new();
 
-    /// Seed 004's sensors, every encoder edge time-stamped (EXTI, `board/exti.rs`); the timers
-    /// still count in hardware and the slave cross-checks the two. `SensorMode::Counts` here
-    /// falls back to the timers alone.
-    static CONFIG: SlaveConfig = SlaveConfig {
-        sensor: firmware_slave::SensorMode::TickTimestamps,
-        ..SlaveConfig::DEFAULT
-    };
+    /// The board configuration (the emulator runs the same one): seed 004's sensors, every
+    /// encoder edge time-stamped (EXTI, `board/exti.rs`) with the timers cross-checking.
+    static CONFIG: SlaveConfig = SlaveConfig::DEFAULT;
 
     /// Runs the whole portable firmware; it never returns.
     #[embassy_executor::task]

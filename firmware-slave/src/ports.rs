@@ -20,7 +20,7 @@ pub trait QuadratureCounters {
 /// The absolute encoder's parallel output (8 Gray-code bits, as levels on the pins).
 pub trait AbsoluteEncoderPins {
     /// Pin levels, bit i = encoder output bit i (1 = high). Polarity and Gray decoding are
-    /// done by the portable code (`SlaveConfig::abs_inverted`).
+    /// done by the portable code (the layout's `AbsLayout`).
     fn read_levels(&mut self) -> u8;
 }
 
@@ -59,15 +59,29 @@ pub struct EncoderEdge {
     pub levels: u8,
 }
 
+/// What one [`EncoderEdges::drain`] handed over.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EdgeBatch {
+    /// False if edges were lost since the last drain (a full queue).
+    pub complete: bool,
+    /// The hardware counters read together with the end of the batch, with no edge in
+    /// between: they have counted exactly the edges handed over so far. `None` when no such
+    /// reading could be taken this time (edges kept arriving); the slave then skips its
+    /// cross-check once.
+    pub counters: Option<[u16; MEASURING_WHEELS]>,
+}
+
 /// Time-stamped encoder edges (edge interrupts or input capture): what tick-timestamp mode
 /// runs on. The board records edges as they happen; the odometry task drains them at its
 /// fixed rate.
 pub trait EncoderEdges {
     /// The A/B levels of every measuring wheel now (decoding starts from them).
     fn levels(&mut self) -> [u8; MEASURING_WHEELS];
-    /// Hand over every edge recorded since the last call, oldest first. Returns false if
-    /// edges were lost since the last call (a full queue), so the slave can flag it.
-    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> bool;
+    /// Hand over the edges recorded up to one instant, oldest first, with the hardware
+    /// counters at that instant (see [`EdgeBatch`]). Edges after it stay for the next call,
+    /// so an edge arriving while this runs can never make the decoded count and the counters
+    /// differ.
+    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch;
 }
 
 /// For boards or builds without edge capture: only fixed-rate counts mode is available.
@@ -77,7 +91,10 @@ impl EncoderEdges for NoEdges {
     fn levels(&mut self) -> [u8; MEASURING_WHEELS] {
         [0; MEASURING_WHEELS]
     }
-    fn drain(&mut self, _f: &mut dyn FnMut(EncoderEdge)) -> bool {
-        true
+    fn drain(&mut self, _f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
+        EdgeBatch {
+            complete: true,
+            counters: None,
+        }
     }
 }

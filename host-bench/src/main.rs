@@ -34,13 +34,14 @@ enum Command {
         /// Seed for everything random in the run (e.g. the encoders' phase at power-on).
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Odometry algorithm the slave runs (sent to it over the protocol).
-        #[arg(long, default_value = "exact", value_parser = ["exact", "arc", "lut", "timing"])]
-        algorithm: String,
+        /// Odometry algorithm the slave runs (sent to it over the protocol): exact, arc, lut
+        /// or timing.
+        #[arg(long, default_value = "exact", value_parser = parse_method)]
+        algorithm: robot_math::odometry::Method,
         /// How the slave reads its measuring wheels: hardware `counts` at its fixed rate, or
-        /// every edge with its `timestamps` (edge interrupts).
-        #[arg(long, default_value = "counts", value_parser = ["counts", "timestamps"])]
-        sensor: String,
+        /// every edge with its `timestamps` (edge interrupts) [default: the board's, timestamps].
+        #[arg(long, value_parser = ["counts", "timestamps"])]
+        sensor: Option<String>,
         /// Print the summary as one JSON object instead of text.
         #[arg(long)]
         json: bool,
@@ -194,6 +195,16 @@ fn main() -> ExitCode {
     }
 }
 
+/// An odometry method by name; unknown names are refused with the list.
+fn parse_method(name: &str) -> Result<robot_math::odometry::Method, String> {
+    robot_math::odometry::Method::from_name(name).ok_or_else(|| {
+        format!(
+            "unknown odometry method {name:?}; available: {}",
+            robot_math::odometry::Method::NAMES
+        )
+    })
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Emulate {
@@ -215,14 +226,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 opts.duration = d;
             }
             opts.seed = seed;
-            opts.algorithm = match algorithm.as_str() {
-                "arc" => protocol::spi::OdometryAlgorithm::Arc,
-                "lut" => protocol::spi::OdometryAlgorithm::Lut,
-                "timing" => protocol::spi::OdometryAlgorithm::Timing,
-                _ => protocol::spi::OdometryAlgorithm::Exact,
-            };
-            if sensor == "timestamps" {
-                opts.slave.sensor = firmware_slave::SensorMode::TickTimestamps;
+            opts.algorithm = firmware_slave::algorithm_of(algorithm);
+            match sensor.as_deref() {
+                Some("counts") => opts.slave.sensor = firmware_slave::SensorMode::Counts,
+                Some("timestamps") => {
+                    opts.slave.sensor = firmware_slave::SensorMode::TickTimestamps
+                }
+                // The board's configuration.
+                _ => {}
             }
             opts.faults.slave_off_at = fault_slave_off_at;
             opts.faults.host_silent_after = fault_host_silent_after;

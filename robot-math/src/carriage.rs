@@ -38,6 +38,21 @@ impl CarriageGeometry {
         abs_bits: 8,
     };
 
+    /// The two measuring wheels in the carriage frame (left, right): on the axle through the
+    /// frame's origin, both rolling along +x.
+    pub fn wheels(&self) -> (crate::wheel::Wheel, crate::wheel::Wheel) {
+        let half = self.wheel_base / 2.0;
+        (
+            crate::wheel::Wheel::at(0.0, half, 0.0),
+            crate::wheel::Wheel::at(0.0, -half, 0.0),
+        )
+    }
+
+    /// The trail in Q40 metres, the position unit of [`crate::exact::FixedPose`].
+    pub fn trail_q40(&self) -> i64 {
+        libm::round(self.trail * crate::exact::FixedPose::METRE as f64) as i64
+    }
+
     /// Absolute encoder step, radians.
     pub fn abs_step(&self) -> f64 {
         2.0 * PI / (1u32 << self.abs_bits) as f64
@@ -215,28 +230,48 @@ impl CarriageExact {
         counts: [i64; 2],
         abs_code: u16,
     ) -> Option<Self> {
-        use crate::exact::{ExactOdometry, ExactParams, FixedPose};
-        use crate::wheel::Wheel;
-        use crate::wheelset::WheelSolver;
-        let half = geom.wheel_base / 2.0;
-        let solver =
-            WheelSolver::new(&[Wheel::at(0.0, half, 0.0), Wheel::at(0.0, -half, 0.0)]).ok()?;
+        use crate::exact::{ExactParams, FixedPose};
+        let (left, right) = geom.wheels();
+        let solver = crate::wheelset::WheelSolver::new(&[left, right]).ok()?;
         let params = ExactParams::new(&solver, &geom.metres_per_count).ok()?;
-        if !(1..=16).contains(&geom.abs_bits) {
+        Self::from_params(
+            params,
+            geom.trail_q40(),
+            geom.abs_bits,
+            FixedPose::from_pose2(body),
+            // The integrator takes Q16 counts.
+            [counts[0] << 16, counts[1] << 16],
+            abs_code,
+        )
+    }
+
+    /// From the integer constants alone (no floats): the carriage axle's [`ExactParams`] (two
+    /// encoders, left then right), the trail in Q40 metres and the absolute encoder's bits.
+    /// Starts at `body` with the wheels at `counts_q16` and the swivel at position `abs_code`.
+    /// `None` for anything but two encoders or 1..=16 absolute bits.
+    pub fn from_params(
+        params: crate::exact::ExactParams,
+        trail_q40: i64,
+        abs_bits: u8,
+        body: crate::exact::FixedPose,
+        counts_q16: [i64; 2],
+        abs_code: u16,
+    ) -> Option<Self> {
+        use crate::exact::{ExactOdometry, FixedPose};
+        if !(1..=16).contains(&abs_bits) || params.encoders() != 2 {
             return None;
         }
         let mut s = CarriageExact {
             carriage: ExactOdometry::new(
                 params,
                 FixedPose::default(),
-                // The integrator takes Q16 counts.
-                &[counts[0] << 16, counts[1] << 16, 0, 0],
+                &[counts_q16[0], counts_q16[1], 0, 0],
             ),
-            trail: libm::round(geom.trail * FixedPose::METRE as f64) as i64,
-            abs_bits: geom.abs_bits,
+            trail: trail_q40,
+            abs_bits,
             body: FixedPose::default(),
         };
-        s.set_body(FixedPose::from_pose2(body), abs_code);
+        s.set_body(body, abs_code);
         Some(s)
     }
 

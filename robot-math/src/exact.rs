@@ -29,6 +29,9 @@ use crate::wheelset::WheelSolver;
 /// Most encoders the fixed-point integrator takes.
 pub const MAX_ENCODERS: usize = 4;
 
+/// Every per-count constant is below this in magnitude (the chunking's bounds rely on it).
+const MAX_CONSTANT: i64 = 1 << 40;
+
 /// Per-chunk limits that keep every 64-bit product in range.
 const MAX_CHUNK_DISPLACEMENT_Q44: i64 = 1 << 43; // 0.5 m
 const MAX_CHUNK_TURN: u64 = 1 << 61; // 1/8 turn
@@ -52,8 +55,10 @@ pub struct ExactParams {
 /// Why a layout cannot be integrated in fixed point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ExactParamsError {
+    /// More than [`MAX_ENCODERS`], or not one travel per count for each wheel.
     TooManyEncoders,
-    /// A per-count constant does not fit the fixed-point format (absurd geometry).
+    /// A per-count constant does not fit the fixed-point format (absurd geometry), or a raw
+    /// constant past the encoders is not zero.
     OutOfRange,
 }
 
@@ -67,31 +72,78 @@ impl ExactParams {
         let pinv = solver.pseudo_inverse();
         let to_fixed = |v: f64, scale: f64| -> Result<i64, ExactParamsError> {
             let f = libm::round(v * scale);
-            if f.is_finite() && f.abs() < (1u64 << 40) as f64 {
+            if f.is_finite() && f.abs() < MAX_CONSTANT as f64 {
                 Ok(f as i64)
             } else {
                 Err(ExactParamsError::OutOfRange)
             }
         };
-        let mut p = ExactParams {
-            n,
-            kx: [0; MAX_ENCODERS],
-            ky: [0; MAX_ENCODERS],
-            kth: [0; MAX_ENCODERS],
-            disp_per_count: 0,
-            turn_per_count: 0,
-        };
+        let (mut kx, mut ky, mut kth) = ([0; MAX_ENCODERS], [0; MAX_ENCODERS], [0; MAX_ENCODERS]);
         const Q44: f64 = (1u64 << 44) as f64;
         const TURN_48: f64 = (1u64 << 48) as f64 / (2.0 * core::f64::consts::PI);
         for j in 0..n {
             let k = metres_per_count[j];
-            p.kx[j] = to_fixed(pinv[0][j] * k, Q44)?;
-            p.ky[j] = to_fixed(pinv[1][j] * k, Q44)?;
-            p.kth[j] = to_fixed(pinv[2][j] * k, TURN_48)?;
-            p.disp_per_count += p.kx[j].abs().max(p.ky[j].abs());
-            p.turn_per_count += p.kth[j].unsigned_abs();
+            kx[j] = to_fixed(pinv[0][j] * k, Q44)?;
+            ky[j] = to_fixed(pinv[1][j] * k, Q44)?;
+            kth[j] = to_fixed(pinv[2][j] * k, TURN_48)?;
         }
-        Ok(p)
+        Self::from_raw(n, kx, ky, kth)
+    }
+
+    /// Rebuild the constants from their raw integers (as [`kx`](Self::kx), [`ky`](Self::ky),
+    /// [`kth`](Self::kth) give them, e.g. shipped over a wire): the same integers give the
+    /// same integrator, bit for bit. Entries past `n` must be zero (unused encoders move
+    /// nothing); every constant must be below 2^40 in magnitude. Integer-only.
+    pub const fn from_raw(
+        n: usize,
+        kx: [i64; MAX_ENCODERS],
+        ky: [i64; MAX_ENCODERS],
+        kth: [i64; MAX_ENCODERS],
+    ) -> Result<Self, ExactParamsError> {
+        if n > MAX_ENCODERS {
+            return Err(ExactParamsError::TooManyEncoders);
+        }
+        let (mut disp_per_count, mut turn_per_count) = (0i64, 0u64);
+        // `while`: this is a `const fn` (seed 004's constants are compiled in).
+        let mut j = 0;
+        while j < MAX_ENCODERS {
+            let ks = [kx[j], ky[j], kth[j]];
+            let mut i = 0;
+            while i < 3 {
+                // `unsigned_abs` so i64::MIN cannot overflow.
+                if ks[i].unsigned_abs() >= MAX_CONSTANT as u64 || (j >= n && ks[i] != 0) {
+                    return Err(ExactParamsError::OutOfRange);
+                }
+                i += 1;
+            }
+            let (ax, ay) = (kx[j].abs(), ky[j].abs());
+            disp_per_count += if ax > ay { ax } else { ay };
+            turn_per_count += kth[j].unsigned_abs();
+            j += 1;
+        }
+        Ok(ExactParams {
+            n,
+            kx,
+            ky,
+            kth,
+            disp_per_count,
+            turn_per_count,
+        })
+    }
+
+    /// Body x displacement per count of each encoder, Q44 metres (zero past the encoders).
+    pub fn kx(&self) -> [i64; MAX_ENCODERS] {
+        self.kx
+    }
+
+    /// Body y displacement per count, Q44 metres.
+    pub fn ky(&self) -> [i64; MAX_ENCODERS] {
+        self.ky
+    }
+
+    /// Turn per count, 2^-48 turns.
+    pub fn kth(&self) -> [i64; MAX_ENCODERS] {
+        self.kth
     }
 
     pub fn encoders(&self) -> usize {

@@ -16,6 +16,7 @@ pub mod carriage;
 pub mod exact;
 pub mod fixed;
 pub mod lut;
+pub mod odometry;
 pub mod omni3;
 pub mod pursuit;
 pub mod se2;

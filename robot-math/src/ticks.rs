@@ -53,6 +53,18 @@ impl TickTracker {
         }
     }
 
+    /// A wheel that has not ticked yet, standing at `count` (on that count's edge).
+    pub const fn at(count: i64) -> Self {
+        TickTracker {
+            count,
+            edge: count,
+            last_t: None,
+            interval: None,
+            prev_interval: None,
+            dir: 0,
+        }
+    }
+
     /// A tick at `t_ns`, `step` = +1 or -1 (anything else is ignored: a corrupt event must
     /// not move the count by more than one).
     // Out of line so `scripts/check-no-float.py` can see it in the object code (small functions

@@ -25,7 +25,10 @@ fn run_default(seed: u64, tweak: impl FnOnce(&mut Options)) -> Run {
 /// Body heading = carriage heading (from the two wheels' counts, each within one count of
 /// the truth) minus the swivel angle (from the absolute encoder, within half a step).
 fn heading_bound() -> f64 {
-    let g = firmware_slave::SlaveConfig::DEFAULT.geometry;
+    let g = firmware_slave::SlaveConfig::DEFAULT
+        .layout
+        .carriage_geometry()
+        .expect("the board's layout is seed 004's carriage");
     let count = g.metres_per_count[0].max(g.metres_per_count[1]);
     g.abs_step() / 2.0 + 2.0 * count / g.wheel_base + 1e-9
 }
@@ -157,6 +160,7 @@ fn an_algorithm_the_slave_cannot_run_fails_the_run_clearly() {
     let scenario = Scenario::seed004_pursuit();
     let mut opts = Options::new(&scenario);
     opts.duration = 1.0;
+    opts.slave.sensor = firmware_slave::SensorMode::Counts;
     opts.algorithm = OdometryAlgorithm::Timing;
     let err = match emulator::run(&scenario, &opts) {
         Ok(_) => panic!("a timing run on a counts-only slave must fail"),

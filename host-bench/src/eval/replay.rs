@@ -12,15 +12,15 @@
 //!   every period; truth rows are scored with one extra sample at their instant (on the
 //!   sampling grid, as the generator's truth rows are, that is the regular sample itself).
 //!
-//! Either way the fixed-point integrator ([`robot_math::exact::ExactOdometry`]) moves the pose.
+//! Every method runs through robot-math's one odometry layer ([`Odometry`], the code the
+//! slave runs), over any layout the robot format accepts, seed 004's swivel carriage included
+//! (its absolute encoder events feed the swivel angle).
 
 use anyhow::{bail, Context, Result};
-use robot_math::arc::ArcOdometry;
-use robot_math::exact::{ExactOdometry, ExactParams, FixedPose, MAX_ENCODERS};
-use robot_math::lut::{LutN, LutOdometry};
+use robot_math::exact::{FixedPose, MAX_ENCODERS};
+use robot_math::odometry::{Method, Odometry, SensorKind};
 use robot_math::se2::wrap_angle;
-use robot_math::ticks::{counts_as_ticks, TickTracker};
-use robot_math::timing::TimingOdometry;
+use robot_math::ticks::TickTracker;
 use robot_math::wheelset::WheelSolver;
 use robot_math::Pose2;
 use serde::Serialize;
@@ -30,6 +30,9 @@ use crate::formats::tickstream::{Event, TickStream};
 
 /// The estimators `replay` knows, in report order.
 pub const ALGORITHMS: &[&str] = &["arc", "lut", "timing", "exact"];
+
+// The report order is robot-math's.
+const _: () = assert!(ALGORITHMS.len() == Method::ALL.len());
 
 /// Also accepted by [`replay`]: `exact`'s f64 twin, fed the same (interpolated) counts, for
 /// checking the fixed-point version against it.
@@ -109,8 +112,10 @@ impl Score {
 
 /// What the replay driver tells an estimator. The trackers hold every tick up to `t_ns`.
 trait Estimator {
-    /// A single tick, as it happens (for estimators that use individual tick times).
+    /// A single tick, as it happens.
     fn tick(&mut self, _t_ns: u64, _encoder: usize, _step: i8) {}
+    /// The absolute encoder's raw output.
+    fn abs(&mut self, _raw: u16) {}
     /// An update at `t_ns`. `interpolate` is true in tick-timestamp mode (the estimator may
     /// place wheels between their ticks), false when it sees whole sampled counts.
     fn update(
@@ -121,27 +126,31 @@ trait Estimator {
     ) -> Pose2;
 }
 
-struct Exact {
-    odo: ExactOdometry,
-    n: usize,
-}
+/// Any method, as the slave runs it.
+impl Estimator for Odometry {
+    fn tick(&mut self, t_ns: u64, encoder: usize, step: i8) {
+        // Ignored with sampled counts: those come with the update.
+        Odometry::tick(self, t_ns, encoder, step);
+    }
 
-impl Estimator for Exact {
+    fn abs(&mut self, raw: u16) {
+        self.set_abs(raw);
+    }
+
     fn update(
         &mut self,
         t_ns: u64,
         wheels: &[TickTracker; MAX_ENCODERS],
-        interpolate: bool,
+        _interpolate: bool,
     ) -> Pose2 {
-        self.odo
-            .update_q16(&positions_q16(wheels, self.n, t_ns, interpolate))
-            .to_pose2()
+        self.set_counts(wheels.map(|w| w.count()));
+        Odometry::update(self, t_ns).to_pose2()
     }
 }
 
-/// What `exact` (and its f64 twin: the same inputs, so the comparison is of the arithmetic
-/// alone) sees of each wheel, in Q16 counts: interpolated between ticks with time stamps,
-/// whole counts otherwise; unused slots zero.
+/// What `exact`'s f64 twin sees of each wheel, in Q16 counts: the same as `exact`
+/// (interpolated between ticks with time stamps, whole counts otherwise), so the comparison
+/// is of the arithmetic alone; unused slots zero.
 fn positions_q16(
     wheels: &[TickTracker; MAX_ENCODERS],
     n: usize,
@@ -173,104 +182,6 @@ impl Estimator for ExactF64 {
     }
 }
 
-struct Arc {
-    odo: ArcOdometry,
-    n: usize,
-}
-
-impl Estimator for Arc {
-    fn update(
-        &mut self,
-        _t_ns: u64,
-        wheels: &[TickTracker; MAX_ENCODERS],
-        _interpolate: bool,
-    ) -> Pose2 {
-        // The arc algorithm works on whole counts, in either mode (seed 004 samples counters).
-        let c: [f64; MAX_ENCODERS] = core::array::from_fn(|j| {
-            if j < self.n {
-                wheels[j].count() as f64
-            } else {
-                0.0
-            }
-        });
-        self.odo.update(&c[..self.n])
-    }
-}
-
-/// Methods that work tick by tick (seed 001's tables: that is their point).
-trait TickByTick {
-    fn tick(&mut self, wheel: usize, step: i8);
-    fn pose(&self) -> Pose2;
-}
-
-impl TickByTick for LutOdometry {
-    fn tick(&mut self, wheel: usize, step: i8) {
-        LutOdometry::tick(self, wheel as u8, step);
-    }
-    fn pose(&self) -> Pose2 {
-        LutOdometry::pose(self)
-    }
-}
-
-impl TickByTick for LutN {
-    fn tick(&mut self, wheel: usize, step: i8) {
-        LutN::tick(self, wheel, step);
-    }
-    fn pose(&self) -> Pose2 {
-        LutN::pose(self)
-    }
-}
-
-/// A tick-by-tick method. With time stamps it sees every tick as it happens; reading sampled
-/// counts, it gets each sample's count changes as ticks, the wheels interleaved.
-struct PerTick<T> {
-    odo: T,
-    per_tick: bool,
-    applied: [i64; MAX_ENCODERS],
-}
-
-impl<T: TickByTick> Estimator for PerTick<T> {
-    fn tick(&mut self, _t_ns: u64, encoder: usize, step: i8) {
-        if self.per_tick {
-            self.odo.tick(encoder, step);
-            self.applied[encoder] += step as i64;
-        }
-    }
-
-    fn update(
-        &mut self,
-        _t_ns: u64,
-        wheels: &[TickTracker; MAX_ENCODERS],
-        _interpolate: bool,
-    ) -> Pose2 {
-        if !self.per_tick {
-            let counts: [i64; MAX_ENCODERS] = core::array::from_fn(|j| wheels[j].count());
-            counts_as_ticks(&mut self.applied, &counts, |j, step| self.odo.tick(j, step));
-        }
-        self.odo.pose()
-    }
-}
-
-/// Seed 000's timing method: every tick with its time.
-struct Timing {
-    odo: TimingOdometry,
-}
-
-impl Estimator for Timing {
-    fn tick(&mut self, t_ns: u64, encoder: usize, step: i8) {
-        self.odo.tick(t_ns, encoder, step);
-    }
-
-    fn update(
-        &mut self,
-        t_ns: u64,
-        _wheels: &[TickTracker; MAX_ENCODERS],
-        _interpolate: bool,
-    ) -> Pose2 {
-        self.odo.update(t_ns)
-    }
-}
-
 /// Origin of seed 001's unsigned coordinate square (in its 10^-8 m units) that keeps the
 /// stream's truth rows, with a 1 m margin, inside the representable range.
 fn lut_origin(stream: &TickStream) -> (u32, u32) {
@@ -285,22 +196,6 @@ fn lut_origin(stream: &TickStream) -> (u32, u32) {
     (lsb(min_x), lsb(min_y))
 }
 
-/// Whether the robot is a differential drive as seed 001's method assumes: two encoders on
-/// one axle through the reference point, left (+y) then right (-y), both rolling forward,
-/// with the same travel per count. Returns (travel per count, track).
-fn seed001_layout(robot: &Robot) -> Option<(f64, f64)> {
-    let [l, r] = robot.encoders.as_slice() else {
-        return None;
-    };
-    let (wl, wr) = (l.wheel, r.wheel);
-    let forward = |w: robot_math::wheel::Wheel| {
-        (w.ux - 1.0).abs() < 1e-9 && w.uy.abs() < 1e-9 && w.x.abs() < 1e-9
-    };
-    let same = (l.metres_per_count - r.metres_per_count).abs() <= 1e-12 * l.metres_per_count;
-    (forward(wl) && forward(wr) && same && wl.y > 0.0 && (wl.y + wr.y).abs() < 1e-9)
-        .then_some((l.metres_per_count, wl.y - wr.y))
-}
-
 /// Run `algorithm` over `stream` for `robot`, seeing the encoders as `mode` says.
 pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -> Result<Score> {
     if let Mode::Counts { rate_hz } = mode {
@@ -308,27 +203,8 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
             bail!("counts sampling rate must be a positive number of Hz up to 1e9, got {rate_hz}");
         }
     }
-    if robot.carriage.is_some() {
-        bail!(
-            "robot {}: replay of a swivel-carriage robot (seed 004 layout) is not built yet; \
-             `host-bench emulate` runs that layout",
-            robot.name
-        );
-    }
-    let n = robot.encoders.len();
-    if n > MAX_ENCODERS {
-        bail!(
-            "robot {}: replay takes at most {MAX_ENCODERS} encoders, the robot has {n}",
-            robot.name
-        );
-    }
-    let solver = WheelSolver::new(&robot.encoder_wheels()).map_err(|e| {
-        anyhow::anyhow!(
-            "robot {}: encoders cannot determine the motion: {e:?}",
-            robot.name
-        )
-    })?;
-    let k: Vec<f64> = robot.encoders.iter().map(|e| e.metres_per_count).collect();
+    let layout = robot.odometry_layout()?;
+    let n = layout.encoders();
     let start = stream
         .events
         .iter()
@@ -342,70 +218,58 @@ pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -
             _ => None,
         })
         .unwrap_or_default();
-    let mut estimator: Box<dyn Estimator> = match algorithm {
-        "exact" => {
-            let params = ExactParams::new(&solver, &k).map_err(|e| {
-                anyhow::anyhow!(
-                    "robot {}: geometry out of fixed-point range: {e:?}",
-                    robot.name
-                )
-            })?;
-            Box::new(Exact {
-                odo: ExactOdometry::new(params, FixedPose::from_pose2(start), &[0; MAX_ENCODERS]),
-                n,
-            })
+    let abs_index = robot.odometry_abs_index();
+    let t0 = stream.events.first().map_or(0, |e| e.t_ns());
+    // The absolute encoder as it reads at the start (the stream's first reading of it there).
+    let abs0 = stream.events.iter().find_map(|e| match *e {
+        Event::Abs {
+            t_ns,
+            encoder,
+            code,
+        } if t_ns == t0 && Some(encoder as usize) == abs_index => Some(code as u16),
+        _ => None,
+    });
+    let mut estimator: Box<dyn Estimator> = if algorithm == ORACLE {
+        if robot.carriage.is_some() {
+            bail!(
+                "robot {}: `{ORACLE}` (exact's f64 twin) is for body-fixed encoders; on a \
+                 swivel carriage compare `exact` with the float baselines instead",
+                robot.name
+            );
         }
-        ORACLE => Box::new(ExactF64 {
-            odo: robot_math::exact::ExactOracle::new(solver, &k, start, &vec![0.0; n]),
+        let solver = WheelSolver::new(&robot.encoder_wheels())
+            .map_err(|e| anyhow::anyhow!("robot {}: {e:?}", robot.name))?;
+        let k = &layout.metres_per_count()[..n];
+        Box::new(ExactF64 {
+            odo: robot_math::exact::ExactOracle::new(solver, k, start, &vec![0.0; n]),
             n,
-        }),
-        "arc" => Box::new(Arc {
-            odo: ArcOdometry::new(solver, &k, start, &vec![0.0; n]),
-            n,
-        }),
-        "lut" => {
-            // Seed 001 keeps coordinates unsigned (about 42.9 m of range at 10^-8 m): like the
-            // paper, put the field origin so the whole run stays positive, 1 m inside the square.
-            let origin = lut_origin(stream);
-            match seed001_layout(robot) {
-                // The paper's own method, for its differential drive.
-                Some((step, track)) => Box::new(PerTick {
-                    odo: LutOdometry::with_origin_offset(step, track, start, origin),
-                    per_tick: mode == Mode::Timestamps,
-                    applied: [0; MAX_ENCODERS],
-                }),
-                // Its ideas on other layouts whose wheels turn the body by equal steps.
-                None => {
-                    let odo = LutN::new(&solver, &k, start, origin).map_err(|e| {
-                        anyhow::anyhow!(
-                            "robot {}: `lut` (seed 001) needs a differential drive, or wheels that \
-                             all turn the body by the same angle per tick ({e:?})",
-                            robot.name
-                        )
-                    })?;
-                    Box::new(PerTick {
-                        odo,
-                        per_tick: mode == Mode::Timestamps,
-                        applied: [0; MAX_ENCODERS],
-                    })
-                }
-            }
-        }
-        "timing" => {
-            if mode != Mode::Timestamps {
-                bail!("`timing` (seed 000) needs every tick's time stamp; it cannot run on sampled counts");
-            }
-            Box::new(Timing {
-                odo: TimingOdometry::from_wheels(&robot.encoder_wheels(), &k, start)
-                    .map_err(|e| anyhow::anyhow!("robot {}: {e:?}", robot.name))?,
-            })
-        }
-        other => bail!(
-            "unknown algorithm {other:?}; available: {}, or all",
-            ALGORITHMS.join(", ")
-        ),
+        })
+    } else {
+        let method = Method::from_name(algorithm).with_context(|| {
+            format!(
+                "unknown algorithm {algorithm:?}; available: {}, or all",
+                ALGORITHMS.join(", ")
+            )
+        })?;
+        let sensors = match mode {
+            Mode::Timestamps => SensorKind::Ticks,
+            Mode::Counts { .. } => SensorKind::Counts,
+        };
+        let odo = Odometry::new(
+            &layout,
+            method,
+            sensors,
+            FixedPose::from_pose2(start),
+            t0,
+            [0; MAX_ENCODERS],
+            abs0,
+        )
+        .map_err(|e| anyhow::anyhow!("robot {}: {e}", robot.name))?;
+        // Seed 001 keeps coordinates unsigned (about 42.9 m of range at 10^-8 m): like the
+        // paper, put the field origin so the whole run stays positive, 1 m inside the square.
+        Box::new(odo.with_lut_origin(lut_origin(stream)))
     };
-    drive(robot, stream, mode, n, estimator.as_mut())?.finish(algorithm)
+    drive(robot, stream, mode, n, abs_index, estimator.as_mut())?.finish(algorithm)
 }
 
 /// Walk the stream in time order: ticks into the trackers (and the estimator), updates at
@@ -415,6 +279,7 @@ fn drive(
     stream: &TickStream,
     mode: Mode,
     n: usize,
+    abs_index: Option<usize>,
     est: &mut dyn Estimator,
 ) -> Result<Scorer> {
     let mut wheels = [TickTracker::new(); MAX_ENCODERS];
@@ -452,6 +317,11 @@ fn drive(
                 wheels[e].tick(t, step);
                 est.tick(t, e, step);
                 ticked = true;
+            }
+            if let Event::Abs { encoder, code, .. } = events[j] {
+                if Some(encoder as usize) == abs_index {
+                    est.abs(code as u16);
+                }
             }
             j += 1;
         }

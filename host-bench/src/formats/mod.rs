@@ -3,5 +3,6 @@
 //! atomically.
 
 pub mod atomic;
+pub mod odometry_layout;
 pub mod robot;
 pub mod tickstream;

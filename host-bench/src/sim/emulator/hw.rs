@@ -15,7 +15,8 @@ use std::task::{Poll, Waker};
 use embassy_time::{Duration, Timer};
 use firmware_master::ports::{MotorDrivers, SlaveBus, SpiMasterError};
 use firmware_slave::ports::{
-    AbsoluteEncoderPins, EncoderEdge, EncoderEdges, QuadratureCounters, SpiSlave, SpiSlaveError,
+    AbsoluteEncoderPins, EdgeBatch, EncoderEdge, EncoderEdges, QuadratureCounters, SpiSlave,
+    SpiSlaveError,
 };
 use protocol::spi::SPI_FRAME_LEN;
 use robot_math::sensors::binary_to_gray;
@@ -47,15 +48,24 @@ impl EncoderEdges for EmuEdges {
             .map(QuadratureDecoder::levels_at)
     }
 
-    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> bool {
-        for (t, encoder, count) in self.0.borrow_mut().take_edges() {
+    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
+        // The plant stands still while the firmware runs: its edges so far and its counters
+        // are one instant, as the board's critical section makes them.
+        let (edges, counters) = {
+            let mut plant = self.0.borrow_mut();
+            (plant.take_edges(), plant.encoder_counts().map(|c| c as u16))
+        };
+        for (t, encoder, count) in edges {
             f(EncoderEdge {
                 t_us: (t * 1e6).round() as u64,
                 encoder: encoder as u8,
                 levels: QuadratureDecoder::levels_at(count),
             });
         }
-        true
+        EdgeBatch {
+            complete: true,
+            counters: Some(counters),
+        }
     }
 }
 

@@ -200,7 +200,9 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     }
     let wall = WallInstant::now();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
-    let carriage: CarriageGeometry = opts.slave.geometry;
+    let carriage: CarriageGeometry = opts.slave.layout.carriage_geometry().context(
+        "the emulated robot is seed 004's: the slave's layout must have a swivel carriage",
+    )?;
     let plant_cfg = PlantConfig {
         drive: Omni3::new(opts.master.wheel_distance, opts.master.v_max)
             .context("drive geometry: wheel distance and v_max must be positive")?,

@@ -1,0 +1,443 @@
+//! [`Odometry`]: one estimator over a [`Layout`], any [`Method`], either [`SensorKind`].
+
+use super::{Layout, Method, SensorKind, Unsupported};
+use crate::arc::ArcOdometry;
+use crate::carriage::CarriageExact;
+use crate::exact::{ExactOdometry, FixedPose, MAX_ENCODERS};
+use crate::lut::LutOdometry;
+use crate::ticks::{counts_as_ticks, TickTracker};
+use crate::timing::TimingOdometry;
+use crate::wheelset::GeometryError;
+use crate::Pose2;
+
+/// The running method's state. One at a time; the float methods are the big ones (their wheel
+/// solvers), which is RAM spent once, not per update.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+enum State {
+    Exact(ExactState),
+    Arc(ArcOdometry),
+    Lut(Lut),
+    Timing(TimingOdometry),
+}
+
+#[derive(Clone, Copy, Debug)]
+enum ExactState {
+    /// Wheels fixed to the body.
+    Body(ExactOdometry),
+    /// Seed 004's swivel carriage.
+    Carriage(CarriageExact),
+}
+
+/// Seed 001's method and the counts it has seen (its input is ticks).
+#[derive(Clone, Debug)]
+struct Lut {
+    tables: LutTables,
+    applied: [i64; MAX_ENCODERS],
+}
+
+// Unboxed (no heap): only host builds have the big variant, and they have the memory.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+enum LutTables {
+    /// The paper's own method, for its differential drive (two 90-entry tables).
+    Differential(LutOdometry),
+    /// Its generalisation: 360-entry tables per wheel (host builds only).
+    #[cfg(feature = "lut-n")]
+    Wheels(crate::lut::LutN),
+}
+
+impl LutTables {
+    fn tick(&mut self, encoder: usize, step: i8) {
+        match self {
+            // Wheel 0 is the left wheel in both conventions.
+            LutTables::Differential(l) => l.tick(encoder as u8, step),
+            #[cfg(feature = "lut-n")]
+            LutTables::Wheels(l) => l.tick(encoder, step),
+        }
+    }
+
+    fn pose(&self) -> Pose2 {
+        match self {
+            LutTables::Differential(l) => l.pose(),
+            #[cfg(feature = "lut-n")]
+            LutTables::Wheels(l) => l.pose(),
+        }
+    }
+}
+
+/// One odometry estimator: a [`Layout`], the running [`Method`], the sensor readings.
+///
+/// Feed it [`tick`](Self::tick)s ([`SensorKind::Ticks`]) or [`set_counts`](Self::set_counts)
+/// ([`SensorKind::Counts`]), and [`set_abs`](Self::set_abs) with a carriage; call
+/// [`update`](Self::update) at the fixed rate. Readings of the other sensor kind are
+/// ignored. No heap, no panics; with [`Method::Exact`] everything on the update path
+/// ([`tick`](Self::tick)'s bookkeeping, [`set_counts`](Self::set_counts),
+/// [`set_abs`](Self::set_abs), [`update`](Self::update), [`set_pose`](Self::set_pose)) is
+/// integer-only. Starting or switching a method uses floats once (the float methods' solvers).
+#[derive(Clone, Debug)]
+pub struct Odometry {
+    layout: Layout,
+    method: Method,
+    sensors: SensorKind,
+    /// Ticks mode: each wheel's tick history (interpolation between ticks).
+    trackers: [TickTracker; MAX_ENCODERS],
+    /// Cumulative whole counts (zero past the layout's encoders).
+    counts: [i64; MAX_ENCODERS],
+    /// Absolute encoder position (decoded), 0 without one.
+    abs: u16,
+    pose: FixedPose,
+    /// Where seed 001's unsigned coordinate square has the field origin.
+    lut_origin: (u32, u32),
+    state: State,
+}
+
+impl Odometry {
+    /// Start `method` at `start` at `t_ns`, with the encoders at `counts` (cumulative whole
+    /// counts; entries past the layout's encoders are ignored) and the absolute encoder's raw
+    /// output `abs_code` (`None`: none read yet, position 0).
+    pub fn new(
+        layout: &Layout,
+        method: Method,
+        sensors: SensorKind,
+        start: FixedPose,
+        t_ns: u64,
+        counts: [i64; MAX_ENCODERS],
+        abs_code: Option<u16>,
+    ) -> Result<Odometry, Unsupported> {
+        let n = layout.encoders();
+        let counts: [i64; MAX_ENCODERS] =
+            core::array::from_fn(|j| if j < n { counts[j] } else { 0 });
+        let abs = match (layout.abs(), abs_code) {
+            (Some(a), Some(raw)) => a.decode(raw),
+            _ => 0,
+        };
+        let mut odo = Odometry {
+            layout: layout.clone(),
+            method,
+            sensors,
+            trackers: counts.map(TickTracker::at),
+            counts,
+            abs,
+            pose: start,
+            lut_origin: (
+                crate::lut::DEFAULT_ORIGIN_LSB,
+                crate::lut::DEFAULT_ORIGIN_LSB,
+            ),
+            // Replaced below; `exact` cannot fail on a checked layout.
+            state: State::Exact(ExactState::Body(ExactOdometry::new(
+                *layout.exact(),
+                start,
+                &[0; MAX_ENCODERS],
+            ))),
+        };
+        odo.state = odo.build(method, start, t_ns)?;
+        Ok(odo)
+    }
+
+    /// Put the field origin at `origin_lsb` inside seed 001's unsigned coordinate square
+    /// (10⁻⁸ m units; default: the middle, ±21.47 m around the origin), so a run far from
+    /// the origin stays representable. Call right after [`new`](Self::new): a running `lut`
+    /// restarts from the current pose.
+    pub fn with_lut_origin(mut self, origin_lsb: (u32, u32)) -> Self {
+        self.lut_origin = origin_lsb;
+        if self.method == Method::Lut {
+            // `lut` ignores time; the same method on the same layout cannot fail now.
+            if let Ok(s) = self.build(Method::Lut, self.pose, 0) {
+                self.state = s;
+            }
+        }
+        self
+    }
+
+    /// The state of `method` starting at `body` with the current readings at `t_ns`.
+    fn build(&self, method: Method, body: FixedPose, t_ns: u64) -> Result<State, Unsupported> {
+        let layout = &self.layout;
+        let n = layout.encoders();
+        let k = &layout.metres_per_count()[..n];
+        let counts_f64 = self.counts.map(|c| c as f64);
+        Ok(match method {
+            Method::Exact => {
+                let q = self.positions_q16(t_ns);
+                let exact = *layout.exact();
+                State::Exact(match (layout.carriage(), layout.abs()) {
+                    (Some(c), Some(a)) => ExactState::Carriage(
+                        CarriageExact::from_params(
+                            exact,
+                            c.trail_q40,
+                            a.bits,
+                            body,
+                            [q[0], q[1]],
+                            self.abs,
+                        )
+                        // `Layout` guarantees two encoders and 1..=16 bits.
+                        .ok_or(Unsupported::Geometry(GeometryError::WheelCount(n)))?,
+                    ),
+                    _ => ExactState::Body(ExactOdometry::new(exact, body, &q)),
+                })
+            }
+            Method::Arc => {
+                let (solver, start) = self.float_start(body)?;
+                State::Arc(ArcOdometry::new(solver, k, start, &counts_f64[..n]))
+            }
+            Method::Lut => {
+                let (solver, start) = self.float_start(body)?;
+                let tables = match layout.differential_drive() {
+                    Some((step, track)) => LutTables::Differential(
+                        LutOdometry::with_origin_offset(step, track, start, self.lut_origin),
+                    ),
+                    None => self.lut_wheels(&solver, start)?,
+                };
+                State::Lut(Lut {
+                    tables,
+                    applied: self.counts,
+                })
+            }
+            Method::Timing => {
+                if self.sensors != SensorKind::Ticks {
+                    return Err(Unsupported::TimingNeedsTicks);
+                }
+                let (_, start) = self.float_start(body)?;
+                let mut t = TimingOdometry::from_wheels(&layout.wheels()[..n], k, start)
+                    .map_err(Unsupported::Geometry)?;
+                // Its integration starts here: every wheel taken to sit on an edge now.
+                t.update(t_ns);
+                State::Timing(t)
+            }
+        })
+    }
+
+    /// The float methods' solver and start pose: they integrate the carriage frame with a
+    /// carriage, the body otherwise.
+    fn float_start(
+        &self,
+        body: FixedPose,
+    ) -> Result<(crate::wheelset::WheelSolver, Pose2), Unsupported> {
+        let solver = self.layout.solver().map_err(Unsupported::Geometry)?;
+        let start = match self.layout.carriage_geometry() {
+            Some(g) => g.carriage_pose(body.to_pose2(), g.swivel_angle(self.abs)),
+            None => body.to_pose2(),
+        };
+        Ok((solver, start))
+    }
+
+    #[cfg(feature = "lut-n")]
+    fn lut_wheels(
+        &self,
+        solver: &crate::wheelset::WheelSolver,
+        start: Pose2,
+    ) -> Result<LutTables, Unsupported> {
+        let k = &self.layout.metres_per_count()[..self.layout.encoders()];
+        crate::lut::LutN::new(solver, k, start, self.lut_origin)
+            .map(LutTables::Wheels)
+            .map_err(Unsupported::LutLayout)
+    }
+
+    #[cfg(not(feature = "lut-n"))]
+    fn lut_wheels(
+        &self,
+        _solver: &crate::wheelset::WheelSolver,
+        _start: Pose2,
+    ) -> Result<LutTables, Unsupported> {
+        Err(Unsupported::LutTablesNotBuilt)
+    }
+
+    /// What `exact` sees of each wheel, Q16 counts: interpolated between ticks at `t_ns` with
+    /// time stamps, the whole counts otherwise; zero past the encoders. Integer-only.
+    fn positions_q16(&self, t_ns: u64) -> [i64; MAX_ENCODERS] {
+        let n = self.layout.encoders();
+        let mut q = [0i64; MAX_ENCODERS];
+        for (j, (slot, (tracker, count))) in q
+            .iter_mut()
+            .zip(self.trackers.iter().zip(self.counts))
+            .enumerate()
+        {
+            if j < n {
+                *slot = match self.sensors {
+                    SensorKind::Ticks => tracker.position_q16(t_ns),
+                    SensorKind::Counts => count.wrapping_shl(16),
+                };
+            }
+        }
+        q
+    }
+
+    /// One decoded tick of `encoder` at `t_ns`, `step` = ±1 ([`SensorKind::Ticks`]; anything
+    /// else, an unknown encoder or another step, is ignored).
+    pub fn tick(&mut self, t_ns: u64, encoder: usize, step: i8) {
+        if !self.record_tick(t_ns, encoder, step) {
+            return;
+        }
+        match &mut self.state {
+            State::Lut(l) => {
+                l.tables.tick(encoder, step);
+                if let Some(a) = l.applied.get_mut(encoder) {
+                    *a += step as i64;
+                }
+            }
+            State::Timing(t) => t.tick(t_ns, encoder, step),
+            State::Exact(_) | State::Arc(_) => {}
+        }
+    }
+
+    /// The tick into its wheel's tracker and count; false if it is to be ignored.
+    /// Integer-only (an entry point of `scripts/check-no-float.py`).
+    #[inline(never)]
+    fn record_tick(&mut self, t_ns: u64, encoder: usize, step: i8) -> bool {
+        if self.sensors != SensorKind::Ticks
+            || encoder >= self.layout.encoders()
+            || (step != 1 && step != -1)
+        {
+            return false;
+        }
+        match (self.trackers.get_mut(encoder), self.counts.get_mut(encoder)) {
+            (Some(t), Some(c)) => {
+                t.tick(t_ns, step);
+                *c = t.count();
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The encoders' cumulative whole counts ([`SensorKind::Counts`]; ignored with ticks).
+    /// Entries past the layout's encoders are ignored. Integer-only.
+    #[inline(never)]
+    pub fn set_counts(&mut self, counts: [i64; MAX_ENCODERS]) {
+        if self.sensors != SensorKind::Counts {
+            return;
+        }
+        let n = self.layout.encoders();
+        for (j, (c, new)) in self.counts.iter_mut().zip(counts).enumerate() {
+            if j < n {
+                *c = new;
+            }
+        }
+    }
+
+    /// The absolute encoder's raw output (decoded with the layout's [`super::AbsLayout`];
+    /// ignored without one). Integer-only.
+    #[inline(never)]
+    pub fn set_abs(&mut self, raw_code: u16) {
+        if let Some(a) = self.layout.abs() {
+            self.abs = a.decode(raw_code);
+        }
+    }
+
+    /// One fixed-rate update at `t_ns`: the pose with every reading so far.
+    pub fn update(&mut self, t_ns: u64) -> FixedPose {
+        match self.state {
+            State::Exact(_) => self.update_exact(t_ns),
+            _ => self.update_float(t_ns),
+        }
+    }
+
+    /// `exact`'s update. Integer-only (an entry point of `scripts/check-no-float.py`).
+    #[inline(never)]
+    fn update_exact(&mut self, t_ns: u64) -> FixedPose {
+        let q = self.positions_q16(t_ns);
+        if let State::Exact(e) = &mut self.state {
+            self.pose = match e {
+                ExactState::Body(o) => o.update_q16(&q),
+                ExactState::Carriage(c) => c.update_q16([q[0], q[1]], self.abs),
+            };
+        }
+        self.pose
+    }
+
+    fn update_float(&mut self, t_ns: u64) -> FixedPose {
+        let n = self.layout.encoders();
+        let counts = self.counts;
+        let frame = match &mut self.state {
+            State::Exact(_) => return self.pose,
+            // Whole counts, in either sensor mode (seed 004 samples counters).
+            State::Arc(a) => a.update(&counts.map(|c| c as f64)[..n]),
+            // With counts: each sample's changes as ticks, the wheels interleaved. With ticks
+            // every tick is in already and this does nothing.
+            State::Lut(l) => {
+                let tables = &mut l.tables;
+                counts_as_ticks(&mut l.applied[..n], &counts[..n], |j, s| tables.tick(j, s));
+                tables.pose()
+            }
+            State::Timing(t) => t.update(t_ns),
+        };
+        let body = match self.layout.carriage_geometry() {
+            Some(g) => g.body_pose(frame, g.swivel_angle(self.abs)),
+            None => frame,
+        };
+        self.pose = FixedPose::from_pose2(body);
+        self.pose
+    }
+
+    /// Restart from `pose` at the current readings at `t_ns` (a set-pose command): what
+    /// moved before is taken in first, then the pose is replaced.
+    pub fn set_pose(&mut self, pose: FixedPose, t_ns: u64) {
+        if let State::Exact(_) = self.state {
+            self.set_pose_exact(pose, t_ns);
+            return;
+        }
+        // The same method on the same layout cannot fail: it is running.
+        if let Ok(s) = self.build(self.method, pose, t_ns) {
+            self.state = s;
+        }
+        self.pose = pose;
+    }
+
+    /// Integer-only (an entry point of `scripts/check-no-float.py`).
+    #[inline(never)]
+    fn set_pose_exact(&mut self, pose: FixedPose, t_ns: u64) {
+        let q = self.positions_q16(t_ns);
+        if let State::Exact(e) = &mut self.state {
+            match e {
+                ExactState::Body(o) => {
+                    o.update_q16(&q);
+                    o.set_pose(pose);
+                }
+                ExactState::Carriage(c) => {
+                    c.update_q16([q[0], q[1]], self.abs);
+                    c.set_body(pose, self.abs);
+                }
+            }
+        }
+        self.pose = pose;
+    }
+
+    /// Switch to `method` at `t_ns`, continuing from the pose there (no jump). On
+    /// `Err` the running method is kept (and has been updated to `t_ns`).
+    pub fn switch(&mut self, method: Method, t_ns: u64) -> Result<(), Unsupported> {
+        if method == self.method {
+            return Ok(());
+        }
+        let here = self.update(t_ns);
+        self.state = self.build(method, here, t_ns)?;
+        self.method = method;
+        Ok(())
+    }
+
+    pub fn method(&self) -> Method {
+        self.method
+    }
+
+    pub fn sensors(&self) -> SensorKind {
+        self.sensors
+    }
+
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// The pose of the last update (or set-pose).
+    pub fn pose(&self) -> FixedPose {
+        self.pose
+    }
+
+    /// The encoders' cumulative whole counts (zero past the layout's encoders).
+    pub fn counts(&self) -> [i64; MAX_ENCODERS] {
+        self.counts
+    }
+
+    /// The absolute encoder's decoded position (0 without one).
+    pub fn abs_position(&self) -> u16 {
+        self.abs
+    }
+}
