@@ -97,16 +97,21 @@ impl SlaveEstimator {
         })
     }
 
-    /// One recorded encoder edge (tick-timestamp mode), in time order.
-    pub fn on_edge(&mut self, e: EncoderEdge) {
+    /// One recorded encoder edge (tick-timestamp mode), in time order; returns the count step
+    /// it decoded to, if any (for recording).
+    pub fn on_edge(&mut self, e: EncoderEdge) -> Option<i8> {
         let w = e.encoder as usize;
-        let Some(decoder) = self.decoders.get_mut(w) else {
-            return;
-        };
+        let decoder = self.decoders.get_mut(w)?;
         match decoder.edge(e.levels) {
-            Quadrature::Step(step) => self.odometry.tick(e.t_us * 1000, w, step),
-            Quadrature::Missed => self.pending |= slave_status::EDGES_LOST,
-            Quadrature::None => {}
+            Quadrature::Step(step) => {
+                self.odometry.tick(e.t_us * 1000, w, step);
+                Some(step)
+            }
+            Quadrature::Missed => {
+                self.pending |= slave_status::EDGES_LOST;
+                None
+            }
+            Quadrature::None => None,
         }
     }
 
@@ -152,7 +157,8 @@ impl SlaveEstimator {
             Some(SlaveCommand::SetAlgorithm(a)) => {
                 self.unsupported = self.odometry.switch(method_of(a), t_ns).is_err();
             }
-            Some(SlaveCommand::None) | None => {}
+            // The odometry task handles robot uploads and sensor sources itself.
+            Some(_) | None => {}
         }
         let pose = self.odometry.update(t_ns);
         if self.unsupported {

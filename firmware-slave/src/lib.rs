@@ -14,14 +14,19 @@
 #![cfg_attr(not(test), no_std)]
 
 mod estimator;
+mod odometry_task;
+pub mod played;
 pub mod ports;
+mod recorder;
+pub mod robot_wire;
 mod shared;
 
+pub use odometry_task::odometry_task;
+
 use embassy_futures::join::join;
-use embassy_time::{Duration, Instant, Ticker};
-use protocol::spi::{self, slave_status, MasterFrame, SlaveFrame, ENCODER_SLOTS, SPI_FRAME_LEN};
+use embassy_time::Instant;
+use protocol::spi::{self, MasterFrame, SPI_FRAME_LEN};
 use robot_math::odometry::Layout;
-use robot_math::sensors::CounterExtender;
 
 pub use estimator::{algorithm_of, method_of, SlaveEstimator, Update};
 use ports::{AbsoluteEncoderPins, EncoderEdges, QuadratureCounters, SpiSlave};
@@ -81,114 +86,11 @@ pub async fn run(
     .0
 }
 
-/// Fixed-rate sampling and pose integration.
-pub async fn odometry_task(
-    mut counters: impl QuadratureCounters,
-    mut edges: impl EncoderEdges,
-    mut abs: impl AbsoluteEncoderPins,
-    shared: &SlaveShared,
-    config: &SlaveConfig,
-) -> ! {
-    let period = Duration::from_micros(config.update_period_us as u64);
-    let timestamps = config.sensor == SensorMode::TickTimestamps;
-    let mut extenders = counters.read_raw().map(CounterExtender::new);
-    let start = SlaveEstimator::new(
-        &config.layout,
-        config.sensor,
-        Instant::now().as_micros() * 1000,
-        &extenders.map(|e| e.total()),
-        &edges.levels(),
-        abs.read_levels() as u16,
-    );
-    let Ok(mut estimator) = start else {
-        // A layout the slave cannot run is a build mistake: publish nothing, so the master's
-        // freshness watchdog sees a dead slave and keeps the motors off.
-        loop {
-            embassy_time::Timer::after_secs(3600).await;
-        }
-    };
-    let mut ticker = Ticker::every(period);
-    let mut next_due = Instant::now() + period;
-    let mut seq: u16 = 0;
-    loop {
-        ticker.next().await;
-        // Sample first, as close to the tick as possible; everything else can wait.
-        let levels = abs.read_levels();
-        let now = Instant::now();
-        let t_ns = now.as_micros() * 1000;
-        let mut status = slave_status::RUNNING;
-        if now > next_due + period {
-            status |= slave_status::OVERRUN;
-        }
-        next_due = now + period;
-
-        // Tick-timestamp mode: every edge up to one instant, decoded into the estimator, and
-        // the timers as they stood at that instant (so the cross-check compares like with
-        // like); without such a reading, the timers now and no cross-check.
-        let (raw, matched) = if timestamps {
-            let batch = edges.drain(&mut |e| estimator.on_edge(e));
-            if !batch.complete {
-                estimator.edges_lost();
-            }
-            match batch.counters {
-                Some(c) => (c, true),
-                None => (counters.read_raw(), false),
-            }
-        } else {
-            (counters.read_raw(), false)
-        };
-        let mut totals = [0i64; ports::MEASURING_WHEELS];
-        for ((total, ext), raw) in totals.iter_mut().zip(&mut extenders).zip(raw) {
-            let (t, jumped) = ext.update(raw);
-            *total = t;
-            if jumped {
-                status |= slave_status::COUNTER_JUMP;
-            }
-        }
-
-        let command = shared.take_command();
-        let update = estimator.sample(
-            t_ns,
-            &totals,
-            matched,
-            levels as u16,
-            command.map(|(_, c)| c),
-        );
-        if let Some((command_seq, _)) = command {
-            shared.acknowledge(command_seq);
-        }
-        status |= update.status;
-
-        seq = seq.wrapping_add(1);
-        let mut counts = [0i32; ENCODER_SLOTS];
-        for (slot, total) in counts.iter_mut().zip(totals) {
-            // The wire carries the low 32 bits; the master only ever needs differences.
-            *slot = total as i32;
-        }
-        let (x_um, y_um) = update.pose.micrometres();
-        let frame = SlaveFrame {
-            seq,
-            time_us: now.as_micros() as u32,
-            counts,
-            abs_code: config.abs_code(levels),
-            pose: protocol::Pose {
-                x_um,
-                y_um,
-                heading: protocol::BinaryAngle(update.pose.heading_bam()),
-            },
-            status,
-            algorithm: update.algorithm,
-            ..SlaveFrame::default()
-        };
-        shared.publish(&frame, update.pose);
-    }
-}
-
 /// Answer the master's polls: arm the latest frame, check what came back.
 pub async fn spi_task(mut spi: impl SpiSlave, shared: &SlaveShared) -> ! {
     let mut rx = [0u8; SPI_FRAME_LEN];
     loop {
-        let mut frame = shared.frame();
+        let mut frame = shared.frame_to_arm();
         frame.armed_us = Instant::now().as_micros() as u32;
         let tx = spi::encode(&frame);
         match spi.exchange(&tx, &mut rx).await {

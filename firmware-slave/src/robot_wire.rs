@@ -164,7 +164,13 @@ mod tests {
         up.wheel(w[0]);
         up.wheel(w[1]);
         up.exact(e[0]);
-        up.exact(ExactPart { kx: e[1].kx + 1, ..e[1] });
-        assert!(matches!(up.commit(&h), Err(UploadError::Fingerprint { .. })));
+        up.exact(ExactPart {
+            kx: e[1].kx + 1,
+            ..e[1]
+        });
+        assert!(matches!(
+            up.commit(&h),
+            Err(UploadError::Fingerprint { .. })
+        ));
     }
 }

@@ -25,7 +25,10 @@ impl<const N: usize> Bytes<N> {
     pub const CAPACITY: usize = N;
 
     pub const fn new() -> Self {
-        Bytes { len: 0, buf: [0; N] }
+        Bytes {
+            len: 0,
+            buf: [0; N],
+        }
     }
 
     /// The first `min(N, data.len())` bytes of `data`.

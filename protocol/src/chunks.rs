@@ -192,7 +192,9 @@ mod tests {
         let mut tx = ChunkSender::<64>::new();
         tx.base = u32::MAX - 20;
         tx.send = tx.base;
-        let mut rx = ChunkReceiver { next: u32::MAX - 20 };
+        let mut rx = ChunkReceiver {
+            next: u32::MAX - 20,
+        };
         let mut got = Vec::new();
         let data = [5u8; 200];
         let mut fed = 0;

@@ -5,8 +5,8 @@
 //! (or loses bytes) resynchronises at the next zero; the CRC catches everything else. A frame
 //! that fails any check is counted by the receiver and dropped, never acted on.
 
-use crate::spi::{OdometryAlgorithm, SensorSource, SlaveCommand};
 use crate::link::{Ack, DataFrame};
+use crate::spi::{OdometryAlgorithm, SensorSource, SlaveCommand};
 use crate::{BinaryAngle, Point, Pose};
 use postcard::experimental::max_size::MaxSize;
 use postcard_schema::Schema;
@@ -94,7 +94,10 @@ pub enum MasterToHost {
     EventsAck(Ack),
     /// Only a simulated board sends this: the true pose at slave time `t_us`, so a recording
     /// of an emulated robot can be scored. Real boards never know the truth.
-    SimTruth { t_us: u64, pose: Pose },
+    SimTruth {
+        t_us: u64,
+        pose: Pose,
+    },
 }
 
 #[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]

@@ -139,7 +139,10 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             }
         );
         if let Some(m) = &o.first_mismatch {
-            println!("first mismatch at update {}: board {} host {}", m.update, m.board, m.host);
+            println!(
+                "first mismatch at update {}: board {} host {}",
+                m.update, m.board, m.host
+            );
         }
         println!(
             "stream         {} events, {} wire bytes ({:.2} bytes/event), link {} bytes out / {} in",
@@ -218,7 +221,10 @@ pub fn run_record(a: RecordArgs) -> Result<()> {
             "wrote {} ({} ticks, {} absolute readings, {} truth rows, {:.1} s, stopped by {})",
             o.out, o.ticks, o.abs_readings, o.truth_rows, o.seconds, o.stopped_by
         );
-        println!("      {} (robot), {} ({} board poses)", o.robot_file, o.board_poses_file, o.board_poses);
+        println!(
+            "      {} (robot), {} ({} board poses)",
+            o.robot_file, o.board_poses_file, o.board_poses
+        );
         if o.lost_events + o.lost_updates > 0 {
             println!(
                 "GAPS: the slave dropped {} events and {} updates (the link could not keep up)",

@@ -84,7 +84,10 @@ pub fn encode(
                 continue;
             }
             Row::Tick {
-                encoder, step, t_ns, ..
+                encoder,
+                step,
+                t_ns,
+                ..
             } => {
                 if encoder as usize >= encoders {
                     bail!(
@@ -118,7 +121,10 @@ pub fn encode(
                     );
                 }
                 let Ok(code) = u16::try_from(code) else {
-                    bail!("event {} (t = {t_ns} ns): absolute code {code} is over 16 bits", i + 1);
+                    bail!(
+                        "event {} (t = {t_ns} ns): absolute code {code} is over 16 bits",
+                        i + 1
+                    );
                 };
                 Event::Abs { t_us, code }
             }

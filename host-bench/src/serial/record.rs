@@ -6,6 +6,7 @@
 //! few updates; the master relays them. A simulated board (`host-bench virtual-board`) also
 //! sends the true pose, which becomes the stream's truth rows; a real board cannot.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -94,8 +95,8 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             (SEED_004_TOML.to_string(), "seed004".to_string())
         }
     };
-    let method = Method::from_name(&format!("{:?}", info.algorithm).to_lowercase())
-        .unwrap_or(Method::Exact);
+    let method =
+        Method::from_name(&format!("{:?}", info.algorithm).to_lowercase()).unwrap_or(Method::Exact);
     let source = if req.counts {
         SensorSource::Counts
     } else {
@@ -135,7 +136,10 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             stopped_by = "ctrl-c";
             break;
         }
-        if req.duration_s.is_some_and(|d| wall.elapsed().as_secs_f64() >= d) {
+        if req
+            .duration_s
+            .is_some_and(|d| wall.elapsed().as_secs_f64() >= d)
+        {
             stopped_by = "duration";
             break;
         }
@@ -185,7 +189,15 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         protocol::Pose::default(),
     )
     .context("switching the slave back to its own sensors")?;
-    write(req, &robot_text, &robot_name, c, seconds, period_us, stopped_by)
+    write(
+        req,
+        &robot_text,
+        &robot_name,
+        c,
+        seconds,
+        period_us,
+        stopped_by,
+    )
 }
 
 /// One report record into the collection. In counts mode the slave reports each update's
@@ -195,7 +207,11 @@ fn take_report(r: Report, c: &mut Collected, edges: &mut EventDecoder) -> Result
         Report::Sensors(b) => {
             let mut err = None;
             edges.feed(b.as_slice(), |e| match e {
-                Ok(Event::Tick { t_us, encoder, step }) => {
+                Ok(Event::Tick {
+                    t_us,
+                    encoder,
+                    step,
+                }) => {
                     c.ticks += 1;
                     c.rows.push(Row::Tick {
                         t_ns: t_us * 1000,
@@ -246,19 +262,23 @@ fn write(
     }
     // One clock for everything (the slave's), starting at the first row.
     c.rows.sort_by_key(|r| r.t_ns());
-    let t0 = c.rows[0].t_ns().min(c.board.first().map_or(u64::MAX, |b| b.0));
+    let t0 = c.rows[0]
+        .t_ns()
+        .min(c.board.first().map_or(u64::MAX, |b| b.0));
     for r in &mut c.rows {
         match r {
-            Row::Tick { t_ns, .. } | Row::Abs { t_ns, .. } | Row::Truth { t_ns, .. } => {
-                *t_ns -= t0
-            }
+            Row::Tick { t_ns, .. } | Row::Abs { t_ns, .. } | Row::Truth { t_ns, .. } => *t_ns -= t0,
         }
     }
     let out = req.out;
     let stem = out
         .file_name()
         .and_then(|n| n.to_str())
-        .map(|n| n.trim_end_matches(".gz").trim_end_matches(".csv").to_string())
+        .map(|n| {
+            n.trim_end_matches(".gz")
+                .trim_end_matches(".csv")
+                .to_string()
+        })
         .unwrap_or_else(|| "recording".into());
     let dir = out.parent().unwrap_or(Path::new(""));
     let robot_file = format!("{stem}.robot.toml");

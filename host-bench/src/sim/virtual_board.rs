@@ -92,16 +92,18 @@ impl Course {
         let (bx, by) = field_to_body(vx, vy, body.theta);
         let omega = -2.0 * robot_math::se2::wrap_angle(body.theta);
         let (w, _) = self.drive.wheel_speeds_saturated(Twist::new(bx, by, omega));
-        w.map(|s| ((s / self.speed_at_full_duty) * 1000.0).round().clamp(-1000.0, 1000.0) as i16)
+        w.map(|s| {
+            ((s / self.speed_at_full_duty) * 1000.0)
+                .round()
+                .clamp(-1000.0, 1000.0) as i16
+        })
     }
 }
 
 /// Open the pseudo-terminal pair; the returned name is what `play --port` opens.
 pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
     let (mut master, slave) = TTYPort::pair().context("cannot open a pseudo-terminal pair")?;
-    let name = slave
-        .name()
-        .context("the pseudo-terminal has no name")?;
+    let name = serialport::SerialPort::name(&slave).context("the pseudo-terminal has no name")?;
     // Short timeouts: the bridge polls, and a host that is not reading must not stall it.
     serialport::SerialPort::set_timeout(&mut master, WallDuration::from_millis(1))?;
     Ok((master, slave, name))

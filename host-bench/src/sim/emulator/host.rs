@@ -117,10 +117,11 @@ async fn read_loop(mut rx: impl Read, log: Rc<RefCell<HostLog>>) {
                 Ok(msg) => {
                     l.frames_received += 1;
                     match msg {
-                        MasterToHost::HelloReply {
+                        MasterToHost::HelloReply(protocol::serial::BoardInfo {
                             protocol_version,
                             schema_fingerprint,
-                        } => {
+                            ..
+                        }) => {
                             let ok = protocol_version == PROTOCOL_VERSION
                                 && schema_fingerprint == protocol::schema_fingerprint();
                             l.fingerprint_match = Some(ok);
@@ -136,6 +137,10 @@ async fn read_loop(mut rx: impl Read, log: Rc<RefCell<HostLog>>) {
                         MasterToHost::Rejected(r) => {
                             l.problem = Some(format!("master rejected a command: {r:?}"))
                         }
+                        // This session neither plays nor records.
+                        MasterToHost::Reports(_)
+                        | MasterToHost::EventsAck(_)
+                        | MasterToHost::SimTruth { .. } => {}
                     }
                 }
             }

@@ -1,0 +1,154 @@
+//! Record mode: the slave's raw readings into its report stream, for `host-bench record`.
+//!
+//! Every decoded tick (with its time stamp), each update's count changes in counts mode (as
+//! that many ticks at the update instant), the absolute encoder's raw code when it changes,
+//! all in the edge code of `protocol::events`, cut into [`Report::Sensors`] records; and the
+//! pose every `pose_every` updates. When the stream has no room, events are dropped and
+//! counted, the event code restarts (its times are deltas), and a [`Report::Lost`] record
+//! goes ahead of what follows, so the host restarts its decoder at the same place.
+
+use protocol::events::{Event, EventEncoder, Step, MAX_EVENT_LEN};
+use protocol::spi::{Report, REPORT_SENSOR_BYTES};
+use protocol::Bytes;
+
+/// Where records go: the report stream (bounded).
+pub trait RecordSink {
+    /// Append one record if it fits whole; false if it was dropped.
+    fn put(&mut self, r: &Report) -> bool;
+}
+
+pub struct Recorder {
+    encoder: EventEncoder,
+    staged: [u8; REPORT_SENSOR_BYTES],
+    len: usize,
+    /// Events and updates dropped since the last `Lost` record went out.
+    lost_events: u32,
+    lost_updates: u32,
+    last_abs: Option<u16>,
+    updates: u32,
+    /// Counts at the last recorded update (counts mode).
+    counts: Option<[i64; 4]>,
+}
+
+impl Default for Recorder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Recorder {
+    pub const fn new() -> Self {
+        Recorder {
+            encoder: EventEncoder::new(),
+            staged: [0; REPORT_SENSOR_BYTES],
+            len: 0,
+            lost_events: 0,
+            lost_updates: 0,
+            last_abs: None,
+            updates: 0,
+            counts: None,
+        }
+    }
+
+    /// The counts at the previous update (the same counts the first time), remembering
+    /// `now` for the next.
+    pub fn last_counts(&mut self, now: [i64; 4]) -> [i64; 4] {
+        self.counts.replace(now).unwrap_or(now)
+    }
+
+    /// One decoded tick.
+    pub fn tick(&mut self, sink: &mut dyn RecordSink, t_us: u64, encoder: u8, step: i8) {
+        let step = if step > 0 {
+            Step::Forward
+        } else {
+            Step::Backward
+        };
+        self.event(
+            sink,
+            Event::Tick {
+                t_us,
+                encoder,
+                step,
+            },
+        );
+    }
+
+    /// The absolute encoder's raw code at an update (recorded when it changes).
+    pub fn abs(&mut self, sink: &mut dyn RecordSink, t_us: u64, code: u16) {
+        if self.last_abs != Some(code) {
+            self.last_abs = Some(code);
+            self.event(sink, Event::Abs { t_us, code });
+        }
+    }
+
+    fn event(&mut self, sink: &mut dyn RecordSink, e: Event) {
+        if self.len + MAX_EVENT_LEN > REPORT_SENSOR_BYTES {
+            self.flush(sink);
+        }
+        match self.encoder.encode(&e, &mut self.staged[self.len..]) {
+            Ok(n) => self.len += n,
+            // Out of order or out of range: not representable, counted as lost.
+            Err(_) => self.lost_events = self.lost_events.saturating_add(1),
+        }
+    }
+
+    /// End of an update: send what is staged, and the pose every `pose_every` updates.
+    pub fn update(
+        &mut self,
+        sink: &mut dyn RecordSink,
+        t_us: u64,
+        pose: protocol::Pose,
+        pose_every: u16,
+    ) {
+        self.flush(sink);
+        self.updates = self.updates.wrapping_add(1);
+        if pose_every > 0 && self.updates % pose_every as u32 == 0 {
+            let r = Report::PoseAt { t_us, pose };
+            if !self.put(sink, &r) {
+                self.lost_updates = self.lost_updates.saturating_add(1);
+                // The host restarts its decoder at the `Lost` marker: so must the code.
+                self.encoder = EventEncoder::new();
+                self.last_abs = None;
+            }
+        }
+    }
+
+    fn flush(&mut self, sink: &mut dyn RecordSink) {
+        if self.len == 0 {
+            return;
+        }
+        let r = Report::Sensors(Bytes::from_slice_truncating(&self.staged[..self.len]));
+        if !self.put(sink, &r) {
+            // Dropped: count what it held, and restart the delta code from time 0 so the
+            // next record decodes on its own after the `Lost` marker.
+            self.lost_events = self.lost_events.saturating_add(self.count_staged());
+            self.encoder = EventEncoder::new();
+            self.last_abs = None;
+        }
+        self.len = 0;
+    }
+
+    /// Events in the staged bytes (each event's first byte is a header; decode to count).
+    fn count_staged(&self) -> u32 {
+        let mut d = protocol::events::EventDecoder::new();
+        let mut n = 0u32;
+        d.feed(&self.staged[..self.len], |_| n += 1);
+        n
+    }
+
+    /// Put a record, preceded by the `Lost` marker if anything was dropped before it.
+    fn put(&mut self, sink: &mut dyn RecordSink, r: &Report) -> bool {
+        if self.lost_events > 0 || self.lost_updates > 0 {
+            let lost = Report::Lost {
+                events: self.lost_events,
+                updates: self.lost_updates,
+            };
+            if !sink.put(&lost) {
+                return false;
+            }
+            self.lost_events = 0;
+            self.lost_updates = 0;
+        }
+        sink.put(r)
+    }
+}
