@@ -95,7 +95,12 @@ pub async fn odometry_task(
     config: &SlaveConfig,
 ) -> ! {
     let period = Duration::from_micros(config.update_period_us as u64);
-    let mut extenders = counters.read_raw().map(CounterExtender::new);
+    let (raw, edge_levels) = if config.sensor == SensorMode::TickTimestamps {
+        start_edges(&mut edges, &mut counters)
+    } else {
+        (counters.read_raw(), edges.levels())
+    };
+    let mut extenders = raw.map(CounterExtender::new);
     let mut layout: Layout = config.layout.clone();
     let mut robot = layout_fingerprint(&layout);
     let mut source = match config.sensor {
@@ -107,7 +112,7 @@ pub async fn odometry_task(
         config.sensor,
         Instant::now().as_micros() * 1000,
         &extenders.map(|e| e.total()),
-        &edges.levels(),
+        &edge_levels,
         abs.read_levels() as u16,
     );
     let Ok(mut estimator) = start else {
@@ -333,3 +338,31 @@ fn play_pass(p: &mut PlayedSensors, shared: &SlaveShared, staged: &mut Staged) {
         }
     }
 }
+
+/// Where edge decoding starts: the A/B levels and the timer counts at one instant. An edge
+/// between reading the levels and the counters would leave the decoded count one off the
+/// timers for good (a false lost edge at every update), so read the levels between two
+/// drains and accept them only when no edge came in between (the second drain is empty and
+/// the timers did not move). Edges drained here happened before the start: discarded.
+fn start_edges(
+    edges: &mut impl EncoderEdges,
+    counters: &mut impl QuadratureCounters,
+) -> (
+    [u16; MEASURING_WHEELS],
+    [u8; MEASURING_WHEELS],
+) {
+    for _ in 0..8 {
+        let before = edges.drain(&mut |_| {}).counters;
+        let levels = edges.levels();
+        let mut quiet = true;
+        let after = edges.drain(&mut |_| quiet = false).counters;
+        if let (true, Some(b), Some(a)) = (quiet, before, after) {
+            if a == b {
+                return (a, levels);
+            }
+        }
+    }
+    // Edges never stopped for a moment: start anyway; a one-off shows as EDGES_LOST.
+    (counters.read_raw(), edges.levels())
+}
+
