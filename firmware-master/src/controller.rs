@@ -60,6 +60,9 @@ pub struct Controller {
     relay: Relay,
     /// The newest valid slave frame, whatever commands are pending (for the board info).
     slave_latest: Option<SlaveFrame>,
+    /// When a play/record stream last moved, and whether that was under 100 ms ago.
+    last_stream_at: Option<Instant>,
+    stream_recent: bool,
 }
 
 fn secs(t: Instant) -> f64 {
@@ -84,6 +87,8 @@ impl Controller {
             commands: CommandQueue::new(),
             relay: Relay::new(),
             slave_latest: None,
+            last_stream_at: None,
+            stream_recent: false,
             slave: None,
             prev_exchange_end: None,
             last_fresh_slave: None,
@@ -110,6 +115,7 @@ impl Controller {
                 self.relay.reset_host();
                 Some(MasterToHost::HelloReply(self.board_info()))
             }
+            HostToMaster::Info => Some(MasterToHost::HelloReply(self.board_info())),
             HostToMaster::Slave(c) => self.queue_for_slave(c),
             HostToMaster::Events(f) => {
                 self.relay.on_host_events(&f);
@@ -222,6 +228,11 @@ impl Controller {
                 }
             }
         }
+        // A recording's reports come and go; stay in streaming mode across short pauses.
+        if !f.reports.bytes.is_empty() || self.relay.busy() {
+            self.last_stream_at = Some(now);
+        }
+        self.stream_recent = us_since(now, self.last_stream_at) < 100_000;
         self.relay.on_slave_frame(&f);
         // A frame whose seq did not move means the slave's odometry loop is stuck: the SPI
         // peripheral still answers, but with stale data. Only moving frames count as alive.
@@ -357,8 +368,9 @@ impl Controller {
     }
 
     /// Whether play/record streams are moving (poll the slave faster).
+    /// True while a stream moved in the last 100 ms (momentary pauses in a recording included).
     pub fn streaming(&self) -> bool {
-        self.relay.busy()
+        self.relay.busy() || self.stream_recent
     }
 
     /// What the hello reply says.

@@ -91,10 +91,13 @@ async fn host_tx_task(mut tx: impl Write, shared: &MasterShared, config: &Master
     loop {
         let msg = match select3(shared.replies.receive(), ticker.next(), streams.next()).await {
             Either3::First(reply) => reply,
-            Either3::Second(()) => match shared.with(|c| c.telemetry(Instant::now())) {
-                Some(t) => MasterToHost::Telemetry(t),
-                None => continue,
-            },
+            // While play/record streams move, they have the line: telemetry waits.
+            Either3::Second(()) => {
+                match shared.with(|c| (!c.streaming()).then(|| c.telemetry(Instant::now()))) {
+                    Some(Some(t)) => MasterToHost::Telemetry(t),
+                    _ => continue,
+                }
+            }
             Either3::Third(()) => match shared.with(|c| c.poll_host_stream(Instant::now())) {
                 Some(Some(m)) => m,
                 _ => continue,

@@ -260,6 +260,10 @@ pub async fn odometry_task(
                 reports = r;
                 recorder = Recorder::new();
                 staged = Staged::new(shared.report_room());
+                if let Reports::Record { .. } = r {
+                    // The absolute encoder first: a recording must say where it starts.
+                    recorder.abs(&mut staged, t_us, levels as u16);
+                }
             }
             other => for_estimator = other,
         }
@@ -347,10 +351,7 @@ fn play_pass(p: &mut PlayedSensors, shared: &SlaveShared, staged: &mut Staged) {
 fn start_edges(
     edges: &mut impl EncoderEdges,
     counters: &mut impl QuadratureCounters,
-) -> (
-    [u16; MEASURING_WHEELS],
-    [u8; MEASURING_WHEELS],
-) {
+) -> ([u16; MEASURING_WHEELS], [u8; MEASURING_WHEELS]) {
     for _ in 0..8 {
         let before = edges.drain(&mut |_| {}).counters;
         let levels = edges.levels();
@@ -365,4 +366,3 @@ fn start_edges(
     // Edges never stopped for a moment: start anyway; a one-off shows as EDGES_LOST.
     (counters.read_raw(), edges.levels())
 }
-

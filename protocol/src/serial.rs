@@ -36,6 +36,9 @@ pub enum HostToMaster {
     SetOdometry(crate::spi::OdometryAlgorithm),
     /// "Still here". The master stops the motors when the host is silent for too long.
     Heartbeat,
+    /// Ask for the board info again (answered by `HelloReply`) without starting a new session:
+    /// the play/record streams keep their positions.
+    Info,
     /// Queue a command for the slave (robot upload, sensor source); acknowledged by the slave
     /// in order, refused with `Rejected(Busy)` when the master's queue is full.
     Slave(SlaveCommand),

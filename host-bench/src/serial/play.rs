@@ -208,7 +208,11 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         }
     }
     let wall_seconds = wall.elapsed().as_secs_f64();
-    // Back to the board's own sensors.
+    // Leave the board as it was: its power-on robot back if it had it, its own sensors.
+    let power_on = robot_math::odometry::Layout::SEED_004;
+    if info.robot == firmware_slave::robot_wire::layout_fingerprint(&power_on) {
+        let _ = session::load_robot(link, &power_on);
+    }
     let _ = session::set_method_and_source(
         link,
         req.method,

@@ -25,7 +25,7 @@ use super::session;
 use crate::formats::tickstream::{self, Event as Row, TickStream};
 
 /// Board poses in the report stream: one every this many updates.
-pub const POSE_EVERY: u16 = 10;
+pub const POSE_EVERY: u16 = 50;
 
 pub struct RecordRequest<'a> {
     pub out: &'a Path,
@@ -102,6 +102,16 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
     } else {
         SensorSource::Ticks
     };
+    // Quiet first (no reports), then a new session, so the report stream starts clean at the
+    // first record of this recording.
+    session::set_method_and_source(
+        link,
+        method,
+        source,
+        Reports::Off,
+        protocol::Pose::default(),
+    )?;
+    session::hello(link)?;
     session::set_method_and_source(
         link,
         method,
@@ -262,6 +272,24 @@ fn write(
     }
     // One clock for everything (the slave's), starting at the first row.
     c.rows.sort_by_key(|r| r.t_ns());
+    // With truth, the stream starts at the first truth row (replay starts from its pose):
+    // ticks before it would move the robot twice; the absolute reading then is kept.
+    if let Some(first) = c.rows.iter().position(|r| matches!(r, Row::Truth { .. })) {
+        let t = c.rows[first].t_ns();
+        let abs = c.rows[..first].iter().rev().find_map(|r| match *r {
+            Row::Abs { encoder, code, .. } => Some(Row::Abs {
+                t_ns: t,
+                encoder,
+                code,
+            }),
+            _ => None,
+        });
+        c.rows.drain(..first);
+        if let Some(a) = abs {
+            c.rows.insert(1, a);
+        }
+        c.board.retain(|b| b.0 >= t);
+    }
     let t0 = c.rows[0]
         .t_ns()
         .min(c.board.first().map_or(u64::MAX, |b| b.0));
@@ -284,7 +312,6 @@ fn write(
     let robot_file = format!("{stem}.robot.toml");
     let board_file = dir.join(format!("{stem}.board.csv"));
     let mut comments = vec![
-        format!("robot: {robot_file}"),
         format!("recorded by host-bench record from robot {robot_name} ({stopped_by} after {seconds:.3} s)"),
         if req.counts {
             format!(
@@ -309,20 +336,29 @@ fn write(
         comments,
         events: c.rows,
     };
-    crate::formats::atomic::write_atomically(&dir.join(&robot_file), |f| {
-        f.write_all(robot_text.as_bytes())?;
-        Ok(())
-    })?;
-    let mut poses = String::from("t_ns,x_m,y_m,theta_rad\n");
-    for (t, p) in &c.board {
-        let (x, y, th) = p.to_si();
-        poses.push_str(&format!("{},{x},{y},{th}\n", t.saturating_sub(t0)));
-    }
-    crate::formats::atomic::write_atomically(&board_file, |f| {
-        f.write_all(poses.as_bytes())?;
-        Ok(())
-    })?;
+    // The stream first (it is checked as it is written), then the files beside it; if one
+    // of those fails, nothing of this recording is left behind.
     tickstream::write(out, &stream)?;
+    let beside = (|| -> Result<()> {
+        crate::formats::atomic::write_atomically(&dir.join(&robot_file), |f| {
+            f.write_all(robot_text.as_bytes())?;
+            Ok(())
+        })?;
+        let mut poses = String::from("t_ns,x_m,y_m,theta_rad\n");
+        for (t, p) in &c.board {
+            let (x, y, th) = p.to_si();
+            poses.push_str(&format!("{},{x},{y},{th}\n", t.saturating_sub(t0)));
+        }
+        crate::formats::atomic::write_atomically(&board_file, |f| {
+            f.write_all(poses.as_bytes())?;
+            Ok(())
+        })
+    })();
+    if let Err(e) = beside {
+        let _ = std::fs::remove_file(out);
+        let _ = std::fs::remove_file(dir.join(&robot_file));
+        return Err(e);
+    }
     Ok(RecordOutcome {
         out: out.display().to_string(),
         robot_file: dir.join(&robot_file).display().to_string(),

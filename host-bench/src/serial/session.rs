@@ -15,13 +15,26 @@ use super::link::Link;
 /// How long the board may take to answer the handshake or apply a setting.
 const ANSWER_TIMEOUT: Duration = Duration::from_secs(3);
 
-/// Say hello until the master answers; refuse another protocol version or schema.
+/// Say hello until the master answers (a new session: both streams restart); refuse another
+/// protocol version or schema.
 pub fn hello(link: &mut Link) -> Result<BoardInfo> {
+    ask(
+        link,
+        &HostToMaster::Hello {
+            protocol_version: PROTOCOL_VERSION,
+        },
+    )
+}
+
+/// The board info now, without restarting the session's streams.
+pub fn info(link: &mut Link) -> Result<BoardInfo> {
+    ask(link, &HostToMaster::Info)
+}
+
+fn ask(link: &mut Link, question: &HostToMaster) -> Result<BoardInfo> {
     let deadline = Instant::now() + ANSWER_TIMEOUT;
     while Instant::now() < deadline {
-        link.send(&HostToMaster::Hello {
-            protocol_version: PROTOCOL_VERSION,
-        })?;
+        link.send(question)?;
         let wait_until = Instant::now() + Duration::from_millis(300);
         while Instant::now() < wait_until {
             match link.recv(Duration::from_millis(20))? {
@@ -78,7 +91,7 @@ fn confirm(
     let deadline = Instant::now() + ANSWER_TIMEOUT;
     loop {
         std::thread::sleep(Duration::from_millis(20));
-        let info = hello(link)?;
+        let info = info(link)?;
         if done(&info) {
             return Ok(info);
         }
