@@ -381,7 +381,8 @@ impl Controller {
             schema_fingerprint: protocol::schema_fingerprint(),
             firmware_version: crate::FIRMWARE_VERSION,
             master_uid: self.cfg.uid,
-            slave_seen: slave.is_some(),
+            // A frame armed before the slave's first update carries no settings yet.
+            slave_seen: slave.is_some_and(|f| f.status & protocol::spi::slave_status::RUNNING != 0),
             robot: slave.map_or(0, |f| f.robot),
             source: slave.map_or(Default::default(), |f| f.source),
             period_us: slave.map_or(0, |f| f.period_us),

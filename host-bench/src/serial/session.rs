@@ -38,6 +38,10 @@ fn ask(link: &mut Link, question: &HostToMaster) -> Result<BoardInfo> {
         let wait_until = Instant::now() + Duration::from_millis(300);
         while Instant::now() < wait_until {
             match link.recv(Duration::from_millis(20))? {
+                // A master that just started may not have heard from its slave yet.
+                Some(MasterToHost::HelloReply(info))
+                    if !info.slave_seen
+                        && Instant::now() + Duration::from_millis(300) < deadline => {}
                 Some(MasterToHost::HelloReply(info)) => return check(info),
                 Some(MasterToHost::Rejected(RejectReason::ProtocolVersion { master, host })) => {
                     bail!(

@@ -1,0 +1,360 @@
+//! The serial bench end to end, with the real serialport on a pseudo-terminal: a virtual board
+//! (both boards' firmware, emulated in real time) on one end, `play` and `record` on the other.
+//!
+//! The streams are written here, in closed form, for robots of our own geometry (a 3-omni
+//! triangle with skewed wheels, a differential axle), each encoder starting somewhere inside a
+//! count and the motion changing abruptly between constant twists: not what `generate` makes.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use firmware_slave::played::PlayKind;
+use host_bench::formats::robot::Robot;
+use host_bench::formats::tickstream::{self, Event, TickStream};
+use host_bench::serial::link::Link;
+use host_bench::serial::{play, record};
+use host_bench::sim::virtual_board;
+use robot_math::odometry::Method;
+
+/// A virtual board on its own thread, stopped when dropped.
+struct Board {
+    port: String,
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Board {
+    fn start(opts: virtual_board::Options) -> Board {
+        let (pty, slave_end, port) = virtual_board::open_pty().expect("pty");
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let _keep = slave_end;
+            virtual_board::serve(pty, &opts, &|| s.load(Ordering::Relaxed)).expect("serve");
+        });
+        Board {
+            port,
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    fn link(&self) -> Link {
+        Link::open(&self.port, 115_200).expect("open pty")
+    }
+}
+
+impl Drop for Board {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+const OMNI: &str = r#"
+format = "omnibench robot v1"
+name = "skewed-omni"
+# Three measuring omni wheels on a 0.13 m circle, each rolling 30 deg off the tangent.
+[[encoders]]
+name = "e1"
+x_m = 0.13
+y_m = 0.0
+direction_deg = 120.0
+metres_per_count = 0.0003
+[[encoders]]
+name = "e2"
+x_m = -0.065
+y_m = 0.11258330249197702
+direction_deg = 240.0
+metres_per_count = 0.0003
+[[encoders]]
+name = "e3"
+x_m = -0.065
+y_m = -0.11258330249197702
+direction_deg = 0.0
+metres_per_count = 0.0003
+"#;
+
+const DIFF: &str = r#"
+format = "omnibench robot v1"
+name = "wide-diff"
+[[encoders]]
+name = "e4"
+x_m = 0.0
+y_m = 0.135
+direction_deg = 0.0
+metres_per_count = 0.00025
+[[encoders]]
+name = "e5"
+x_m = 0.0
+y_m = -0.135
+direction_deg = 0.0
+metres_per_count = 0.00025
+"#;
+
+/// Constant body twists (seconds, vx, vy, omega), one after the other, changing abruptly.
+type Segments = [(f64, f64, f64, f64)];
+
+/// The tick stream of `robot` driven through `segments` from the origin, in closed form, each
+/// encoder starting at `phase[i]` of a count.
+fn closed_form_stream(
+    robot: &Robot,
+    robot_file: &str,
+    segments: &Segments,
+    phase: &[f64],
+) -> TickStream {
+    let mut events = Vec::new();
+    let (mut t0, mut x, mut y, mut th) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let mut u: Vec<f64> = phase.to_vec(); // position in counts, plus the phase
+    let ns = |t: f64| (t * 1e9).round() as u64;
+    let mut next_truth = 0.0f64;
+    for &(dur, vx, vy, w) in segments {
+        // Truth rows every 10 ms inside this segment.
+        let pose_at = |dt: f64| -> (f64, f64, f64) {
+            let th1 = th + w * dt;
+            if w.abs() < 1e-12 {
+                let (s, c) = th.sin_cos();
+                (x + (vx * c - vy * s) * dt, y + (vx * s + vy * c) * dt, th1)
+            } else {
+                let (s0, c0) = th.sin_cos();
+                let (s1, c1) = th1.sin_cos();
+                (
+                    x + vx * (s1 - s0) / w + vy * (c1 - c0) / w,
+                    y - vx * (c1 - c0) / w + vy * (s1 - s0) / w,
+                    th1,
+                )
+            }
+        };
+        while next_truth < t0 + dur - 1e-12 {
+            let (px, py, pt) = pose_at(next_truth - t0);
+            events.push(Event::Truth {
+                t_ns: ns(next_truth),
+                x_m: px,
+                y_m: py,
+                theta_rad: pt,
+            });
+            next_truth += 0.01;
+        }
+        for (i, e) in robot.encoders.iter().enumerate() {
+            let wh = e.wheel;
+            let rate =
+                (wh.ux * vx + wh.uy * vy + w * (wh.x * wh.uy - wh.y * wh.ux)) / e.metres_per_count;
+            let (ua, ub) = (u[i], u[i] + rate * dur);
+            if rate > 0.0 {
+                let mut n = ua.floor() + 1.0;
+                while n <= ub {
+                    events.push(Event::Tick {
+                        t_ns: ns(t0 + (n - ua) / rate),
+                        encoder: i as u16,
+                        step: 1,
+                    });
+                    n += 1.0;
+                }
+            } else if rate < 0.0 {
+                let mut n = ua.floor();
+                if n == ua {
+                    n -= 1.0;
+                }
+                while n > ub {
+                    events.push(Event::Tick {
+                        t_ns: ns(t0 + (ua - n) / -rate),
+                        encoder: i as u16,
+                        step: -1,
+                    });
+                    n -= 1.0;
+                }
+            }
+            u[i] = ub;
+        }
+        (x, y, th) = pose_at(dur);
+        t0 += dur;
+    }
+    events.push(Event::Truth {
+        t_ns: ns(t0),
+        x_m: x,
+        y_m: y,
+        theta_rad: th,
+    });
+    events.sort_by_key(|e| e.t_ns());
+    TickStream {
+        robot: Some(robot_file.to_string()),
+        comments: vec!["closed-form constant-twist segments (tests/bench.rs)".into()],
+        events,
+    }
+}
+
+fn write_case(
+    dir: &Path,
+    name: &str,
+    toml: &str,
+    segments: &Segments,
+    phase: &[f64],
+) -> (PathBuf, Robot) {
+    let robot_path = dir.join(format!("{name}.toml"));
+    std::fs::write(&robot_path, toml).unwrap();
+    let robot = Robot::load(&robot_path).unwrap();
+    let stream = closed_form_stream(&robot, &format!("{name}.toml"), segments, phase);
+    let ticks = dir.join(format!("{name}.csv"));
+    tickstream::write(&ticks, &stream).unwrap();
+    (ticks, robot)
+}
+
+fn play_file(
+    board: &Board,
+    ticks: &Path,
+    robot: &Robot,
+    kind: PlayKind,
+    faults: host_bench::serial::link::Faults,
+) -> anyhow::Result<play::PlayOutcome> {
+    let stream = tickstream::read(ticks)?;
+    let layout = robot.odometry_layout()?;
+    let mut link = board.link();
+    link.faults = faults;
+    play::play(
+        &mut link,
+        &play::PlayRequest {
+            robot_name: &robot.name,
+            layout: &layout,
+            method: Method::Exact,
+            kind,
+            stream: &stream,
+            progress: None,
+        },
+    )
+}
+
+/// An omni run: sideways, then an arc, then a spin with a reversal, abrupt changes between.
+const OMNI_RUN: &Segments = &[
+    (0.3, 0.0, 0.25, 0.0),
+    (0.4, 0.3, 0.0, 1.2),
+    (0.3, -0.1, 0.1, -2.0),
+];
+/// A differential run: an arc, straight, a spin in place, reverse.
+const DIFF_RUN: &Segments = &[
+    (0.4, 0.3, 0.0, 0.8),
+    (0.3, 0.4, 0.0, 0.0),
+    (0.2, 0.0, 0.0, 3.0),
+    (0.3, -0.2, 0.0, 0.0),
+];
+
+#[test]
+fn play_is_bit_exact_on_streams_of_our_own_in_both_sensor_modes() {
+    let dir = tempfile::tempdir().unwrap();
+    let board = Board::start(virtual_board::Options::default());
+    let cases = [
+        (
+            write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.31, 0.77, 0.05]),
+            OMNI_RUN,
+        ),
+        (
+            write_case(dir.path(), "diff", DIFF, DIFF_RUN, &[0.62, 0.18]),
+            DIFF_RUN,
+        ),
+    ];
+    for ((ticks, robot), run) in &cases {
+        let run_ms = (run.iter().map(|s| s.0).sum::<f64>() * 1e3).round() as u64;
+        for kind in [PlayKind::Ticks, PlayKind::Counts] {
+            let o = play_file(&board, ticks, robot, kind, Default::default())
+                .unwrap_or_else(|e| panic!("{} {kind:?}: {e:#}", robot.name));
+            assert_eq!(
+                o.mismatches, 0,
+                "{} {kind:?}: {:?}",
+                robot.name, o.first_mismatch
+            );
+            assert_eq!(o.board_updates, o.expected_updates);
+            // One update per millisecond of the run.
+            assert!(
+                o.board_updates.abs_diff(run_ms) <= 1,
+                "{} updates, {run_ms} ms",
+                o.board_updates
+            );
+            let err = o.final_error_m.unwrap();
+            // What is checked here is board == host; the error only has to be sane. With a
+            // random power-on phase `exact` is not yet within a count on the omni layout
+            // (issue 8: about 0.2 mm here); counts at 1 kHz add their quantisation.
+            let bound = if kind == PlayKind::Ticks { 1e-3 } else { 3e-3 };
+            assert!(err < bound, "{} {kind:?}: final error {err}", robot.name);
+            if kind == PlayKind::Ticks {
+                assert!(
+                    o.bytes_per_event <= 2.0,
+                    "{} bytes per event",
+                    o.bytes_per_event
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_corrupted_and_a_dropped_frame_are_recovered_with_nothing_lost() {
+    let dir = tempfile::tempdir().unwrap();
+    let board = Board::start(virtual_board::Options::default());
+    let (ticks, robot) = write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.5, 0.5, 0.5]);
+    let clean = play_file(&board, &ticks, &robot, PlayKind::Ticks, Default::default()).unwrap();
+    let faults = host_bench::serial::link::Faults {
+        corrupt: vec![2],
+        drop: vec![6],
+    };
+    let o = play_file(&board, &ticks, &robot, PlayKind::Ticks, faults).unwrap();
+    assert_eq!((o.frames_corrupted, o.frames_dropped), (1, 1));
+    assert_eq!(o.mismatches, 0, "{:?}", o.first_mismatch);
+    assert_eq!(o.board_updates, clean.board_updates);
+    assert_eq!(
+        o.final_error_m, clean.final_error_m,
+        "the same poses, so the same error"
+    );
+    assert!(
+        o.link_bytes_sent > clean.link_bytes_sent,
+        "the lost frames were sent again"
+    );
+}
+
+#[test]
+fn another_schema_is_refused_and_says_which() {
+    let mut opts = virtual_board::Options::default();
+    opts.faults.schema = Some(0xDEAD_BEEF);
+    let board = Board::start(opts);
+    let mut link = board.link();
+    let e = host_bench::serial::session::hello(&mut link).unwrap_err();
+    let msg = format!("{e:#}");
+    assert!(msg.contains("deadbeef") && msg.contains("schema"), "{msg}");
+}
+
+#[test]
+fn a_recording_replays_against_its_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let board = Board::start(virtual_board::Options::default());
+    let out = dir.path().join("rec.csv");
+    let mut link = board.link();
+    let o = record::record(
+        &mut link,
+        &record::RecordRequest {
+            out: &out,
+            duration_s: Some(2.0),
+            counts: false,
+            robot: None,
+            progress: None,
+        },
+    )
+    .unwrap();
+    assert_eq!((o.lost_events, o.lost_updates), (0, 0), "{o:?}");
+    assert!(o.ticks > 1000 && o.truth_rows > 100, "{o:?}");
+    let stream = tickstream::read(&out).unwrap();
+    let robot = Robot::load(&stream.robot_path(&out).unwrap()).unwrap();
+    let score = host_bench::eval::replay::replay(
+        &robot,
+        &stream,
+        "exact",
+        host_bench::eval::replay::Mode::Timestamps,
+    )
+    .unwrap();
+    // Seed 004's 8-bit swivel encoder knows the start heading to half a code (0.7 deg): over
+    // the 0.1 m recorded that is a few millimetres at most.
+    assert!(score.final_error_m < 5e-3, "{}", score.final_error_m);
+    assert!(
+        dir.path().join("rec.board.csv").is_file() && dir.path().join("rec.robot.toml").is_file()
+    );
+}
