@@ -1,0 +1,203 @@
+//! The bench commands as a user runs them: `host-bench virtual-board` in the background, then
+//! `play --json` and `record` + `replay --json` against the port it prints.
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+
+const BIN: &str = env!("CARGO_BIN_EXE_host-bench");
+
+struct VirtualBoard {
+    child: Child,
+    port: String,
+}
+
+impl VirtualBoard {
+    fn start(args: &[&str]) -> VirtualBoard {
+        let mut child = Command::new(BIN)
+            .arg("virtual-board")
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn virtual-board");
+        let mut first = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut first)
+            .unwrap();
+        let port = first
+            .trim()
+            .strip_prefix("port: ")
+            .unwrap_or_else(|| panic!("first line {first:?}"))
+            .to_string();
+        VirtualBoard { child, port }
+    }
+}
+
+impl Drop for VirtualBoard {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn data(p: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../robots")
+        .join(p)
+        .display()
+        .to_string()
+}
+
+#[test]
+fn play_prints_the_verdict_as_json_and_a_wrong_robot_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let ticks = dir.path().join("line.csv");
+    let gen = Command::new(BIN)
+        .args([
+            "generate",
+            "--robot",
+            &data("seed001.toml"),
+            "--trajectory",
+            "seed000-line",
+        ])
+        .arg("--out")
+        .arg(&ticks)
+        .output()
+        .unwrap();
+    assert!(
+        gen.status.success(),
+        "{}",
+        String::from_utf8_lossy(&gen.stderr)
+    );
+    let board = VirtualBoard::start(&[]);
+    let out = Command::new(BIN)
+        .args([
+            "play",
+            "--port",
+            &board.port,
+            "--json",
+            "--sensor",
+            "counts",
+        ])
+        .arg("--ticks")
+        .arg(&ticks)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "events",
+        "board_updates",
+        "mismatches",
+        "wire_bytes",
+        "bytes_per_event",
+        "played_seconds",
+        "wall_seconds",
+        "final_error_m",
+    ] {
+        assert!(v.get(key).is_some(), "{key} missing in {v}");
+    }
+    assert_eq!(v["mismatches"], 0);
+    assert!(v["board_updates"].as_u64().unwrap() > 100);
+
+    // The wrong robot for a stream (a triangle's ticks, a two-wheel robot): refused, and the
+    // error names the row.
+    let omni = dir.path().join("omni.csv");
+    let gen = Command::new(BIN)
+        .args([
+            "generate",
+            "--robot",
+            &data("seed000-0.4mm.toml"),
+            "--trajectory",
+            "seed000-line",
+        ])
+        .arg("--out")
+        .arg(&omni)
+        .output()
+        .unwrap();
+    assert!(gen.status.success());
+    let out = Command::new(BIN)
+        .args([
+            "play",
+            "--port",
+            &board.port,
+            "--robot",
+            &data("seed001.toml"),
+        ])
+        .arg("--ticks")
+        .arg(&omni)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("encoder 2") && err.contains("2 encoders"),
+        "{err}"
+    );
+}
+
+#[test]
+fn another_schema_makes_play_exit_non_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let ticks = dir.path().join("line.csv");
+    let gen = Command::new(BIN)
+        .args([
+            "generate",
+            "--robot",
+            &data("seed001.toml"),
+            "--trajectory",
+            "seed000-line",
+        ])
+        .arg("--out")
+        .arg(&ticks)
+        .output()
+        .unwrap();
+    assert!(gen.status.success());
+    let board = VirtualBoard::start(&["--fault-schema", "0badc0de"]);
+    let out = Command::new(BIN)
+        .args(["play", "--port", &board.port])
+        .arg("--ticks")
+        .arg(&ticks)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("0badc0de") && err.contains("schema"), "{err}");
+}
+
+#[test]
+fn record_writes_a_stream_that_replay_scores() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec.csv");
+    let board = VirtualBoard::start(&[]);
+    let out = Command::new(BIN)
+        .args(["record", "--port", &board.port, "--duration", "2"])
+        .arg("--out")
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = Command::new(BIN)
+        .args(["replay", "--json", "--algorithm", "exact"])
+        .arg("--ticks")
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let err = v["algorithms"][0]["final_error_m"].as_f64().unwrap();
+    assert!(err < 5e-3, "{v}");
+}
