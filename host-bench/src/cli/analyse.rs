@@ -183,10 +183,15 @@ pub fn run_replay(
             s.write_track(&dir.join(format!("{}.csv", s.name)))?;
         }
     }
+    // A recording's own poses, when `record` wrote them beside the stream.
+    let board = match host_bench::eval::board_poses::beside(&ticks) {
+        Some(f) => host_bench::eval::board_poses::score(&f, &stream)?,
+        None => None,
+    };
     if json {
         println!(
             "{}",
-            serde_json::json!({ "mode": mode.to_string(), "algorithms": scores, "skipped": skipped })
+            serde_json::json!({ "mode": mode.to_string(), "algorithms": scores, "skipped": skipped, "board": board })
         );
     } else {
         println!(
@@ -210,6 +215,16 @@ pub fn run_replay(
                 "{:<8} skipped: {}",
                 k["name"].as_str().unwrap_or(""),
                 k["reason"].as_str().unwrap_or("")
+            );
+        }
+        if let Some(b) = &board {
+            println!(
+                "{:<8} final error {:9.4} mm, max {:9.4} mm ({} poses the board computed live, {})",
+                "board",
+                b.final_error_m * 1e3,
+                b.max_error_m * 1e3,
+                b.rows,
+                b.file
             );
         }
     }

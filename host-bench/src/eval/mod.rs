@@ -2,5 +2,6 @@
 //! accuracy suite over every seed case, and the reports and plots.
 
 pub mod accuracy;
+pub mod board_poses;
 pub mod replay;
 pub mod report;

@@ -112,6 +112,9 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         protocol::Pose::default(),
     )?;
     session::hello(link)?;
+    // A simulated board knows where the robot is: start the board's odometry there, so its
+    // poses compare with the truth. A real board starts at the origin.
+    let start = latest_truth(link)?.unwrap_or_default();
     session::set_method_and_source(
         link,
         method,
@@ -119,7 +122,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         Reports::Record {
             pose_every: POSE_EVERY,
         },
-        protocol::Pose::default(),
+        start,
     )?;
 
     let stop = Arc::new(AtomicBool::new(false));
@@ -208,6 +211,18 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         period_us,
         stopped_by,
     )
+}
+
+/// The newest true pose a simulated board sends within 50 ms (none from a real board).
+fn latest_truth(link: &mut Link) -> Result<Option<protocol::Pose>> {
+    let until = Instant::now() + Duration::from_millis(50);
+    let mut latest = None;
+    while Instant::now() < until {
+        if let Some(MasterToHost::SimTruth { pose, .. }) = link.recv(Duration::from_millis(5))? {
+            latest = Some(pose);
+        }
+    }
+    Ok(latest)
 }
 
 /// One report record into the collection. In counts mode the slave reports each update's
