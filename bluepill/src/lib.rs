@@ -1,5 +1,5 @@
-//! What both omnibench computers share as STM32F103C8 "blue pill" boards: the clock tree and
-//! the status LED. Each firmware's `board/` layer builds its own peripherals on top of this.
+//! What both omnibench computers share as STM32F103C8 "blue pill" boards: the clock tree, the
+//! status LED and the panic handler. Each firmware's `board/` layer builds its own peripherals on top of this.
 #![no_std]
 
 #[cfg(target_os = "none")]
@@ -54,3 +54,6 @@ mod board {
 
 #[cfg(target_os = "none")]
 pub use board::*;
+
+#[cfg(target_os = "none")]
+mod panic;

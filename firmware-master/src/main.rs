@@ -16,10 +16,6 @@ mod firmware {
 
     use crate::board;
 
-    /// State the portable code shares between its tasks. A `static` because the task that uses
-    /// it never ends, so it must outlive `main`'s stack frame.
-    static SHARED: MasterShared = MasterShared::new();
-
     /// Runs the whole portable firmware; it never returns.
     #[embassy_executor::task]
     async fn motion(
@@ -27,32 +23,41 @@ mod firmware {
         serial_rx: board::SerialRx,
         serial_tx: board::SerialTx,
         motors: board::Motors,
+        shared: &'static MasterShared,
+        config: MasterConfig,
     ) -> ! {
-        firmware_master::run(
-            bus,
-            serial_rx,
-            serial_tx,
-            motors,
-            &SHARED,
-            &MasterConfig::DEFAULT,
-        )
-        .await
+        firmware_master::run(bus, serial_rx, serial_tx, motors, shared, &config).await
     }
 
     #[embassy_executor::main]
     async fn main(spawner: Spawner) {
-        let board = board::init();
+        // The emulator runs the same defaults; only this chip's identity is added here.
+        let config = MasterConfig {
+            uid: board::unique_id(),
+            ..MasterConfig::DEFAULT
+        };
+        let board = board::init(&config);
         defmt::info!(
-            "omnibench master (motion controller) up, protocol v{=u16}",
-            protocol::PROTOCOL_VERSION
+            "omnibench master (motion controller) up, protocol v{=u16}, {=u32} baud, uid {=[u8]:02x}",
+            protocol::PROTOCOL_VERSION,
+            config.baud,
+            config.uid
         );
 
+        // State the portable code shares between its tasks; it must outlive `main`'s frame.
+        // Not a plain `static`: one non-zero byte in its initial value (an enum niche) would
+        // put the whole struct (kilobytes, mostly zeros) into `.data`, whose initial image
+        // is stored in flash. `singleton!` keeps it in `.bss` and builds it here, once.
+        let shared = cortex_m::singleton!(: MasterShared = MasterShared::new())
+            .unwrap_or_else(|| defmt::panic!("main ran twice"));
         spawner.spawn(defmt::unwrap!(bluepill::heartbeat(board.led)));
         spawner.spawn(defmt::unwrap!(motion(
             board.slave,
             board.serial_rx,
             board.serial_tx,
-            board.motors
+            board.motors,
+            shared,
+            config
         )));
     }
 }

@@ -16,10 +16,6 @@ mod firmware {
 
     use crate::board;
 
-    /// State the portable code shares between its tasks. A `static` because the task that uses
-    /// it never ends, so it must outlive `main`'s stack frame.
-    static SHARED: SlaveShared = SlaveShared::new();
-
     /// The board configuration (the emulator runs the same one): seed 004's sensors, every
     /// encoder edge time-stamped (EXTI, `board/exti.rs`) with the timers cross-checking.
     static CONFIG: SlaveConfig = SlaveConfig::DEFAULT;
@@ -31,8 +27,9 @@ mod firmware {
         edges: board::EdgeCapture,
         abs: board::AbsoluteEncoder,
         spi: board::SpiSlaveLink,
+        shared: &'static SlaveShared,
     ) -> ! {
-        firmware_slave::run(counters, edges, abs, spi, &SHARED, &CONFIG).await
+        firmware_slave::run(counters, edges, abs, spi, shared, &CONFIG).await
     }
 
     #[embassy_executor::main]
@@ -43,12 +40,19 @@ mod firmware {
             protocol::PROTOCOL_VERSION
         );
 
+        // State the portable code shares between its tasks; it must outlive `main`'s frame.
+        // Not a plain `static`: one non-zero byte in its initial value (an enum niche) would
+        // put the whole struct (kilobytes, mostly zeros) into `.data`, whose initial image
+        // is stored in flash. `singleton!` keeps it in `.bss` and builds it here, once.
+        let shared = cortex_m::singleton!(: SlaveShared = SlaveShared::new())
+            .unwrap_or_else(|| defmt::panic!("main ran twice"));
         spawner.spawn(defmt::unwrap!(bluepill::heartbeat(board.led)));
         spawner.spawn(defmt::unwrap!(odometry(
             board.counters,
             board.edges,
             board.abs,
-            board.spi
+            board.spi,
+            shared
         )));
     }
 }

@@ -11,8 +11,10 @@ mod slave_link;
 
 use embassy_stm32::gpio::Output;
 use embassy_stm32::{bind_interrupts, dma, peripherals, usart};
-// Linked for their side effects: the RTT transport behind `defmt` and the panic handler.
-use {defmt_rtt as _, panic_probe as _};
+use firmware_master::MasterConfig;
+// Linked for its side effect: the RTT transport behind `defmt`. The panic handler is
+// `bluepill`'s (no `panic-probe`: its `print-defmt` pulls in `core::fmt`).
+use defmt_rtt as _;
 
 pub use motors::Motors;
 pub use serial::{SerialRx, SerialTx};
@@ -35,8 +37,18 @@ pub struct Board {
     pub led: Output<'static>,
 }
 
-/// Bring up the clocks and build every port. Called once, from `main`.
-pub fn init() -> Board {
+/// This chip's 96-bit unique ID (RM0008 §30.2: factory-programmed at 0x1FFF_F7E8), as the 12
+/// bytes in address order, i.e. the 96-bit value little-endian: the same bytes a debug probe
+/// reads from that address, so the host can tell which probe and which serial port belong to
+/// the same board.
+pub fn unique_id() -> [u8; 12] {
+    // embassy's `uid()` reads exactly those 12 bytes (`pac::UID` is 0x1FFF_F7E8 on the F103).
+    embassy_stm32::uid::uid()
+}
+
+/// Bring up the clocks and build every port for `config` (its `baud` sets USART1). Called
+/// once, from `main`.
+pub fn init(config: &MasterConfig) -> Board {
     let p = embassy_stm32::init(bluepill::clock_config());
 
     // Motors first: the driver enable pin goes low (drivers off) as early as possible.
@@ -44,7 +56,15 @@ pub fn init() -> Board {
     let slave = SlaveLink::new(
         p.SPI1, p.PA4, p.PA5, p.PA6, p.PA7, p.DMA1_CH3, p.DMA1_CH2, Irqs,
     );
-    let (serial_tx, serial_rx) = serial::new(p.USART1, p.PA9, p.PA10, p.DMA1_CH4, p.DMA1_CH5, Irqs);
+    let (serial_tx, serial_rx) = serial::new(
+        config.baud,
+        p.USART1,
+        p.PA9,
+        p.PA10,
+        p.DMA1_CH4,
+        p.DMA1_CH5,
+        Irqs,
+    );
     let led = bluepill::status_led(p.PC13);
 
     Board {

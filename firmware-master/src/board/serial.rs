@@ -1,4 +1,5 @@
-//! USART1 to the host (a USB-serial adapter): 115200 8N1, both directions on DMA.
+//! USART1 to the host (a USB-serial adapter): 8N1 at `MasterConfig::baud` (115200 by
+//! default), both directions on DMA.
 //!
 //! Reception runs continuously into a circular DMA buffer (`RingBufferedUartRx`), so bytes keep
 //! arriving while the control code is busy and a read returns whatever is there: at once if
@@ -19,11 +20,15 @@ pub type SerialTx = UartTx<'static, Async>;
 /// The host-to-master half: circular DMA reception, `embedded_io_async::Read`.
 pub type SerialRx = RingBufferedUartRx<'static>;
 
-/// Receive buffer size. At 115200 baud (11.5 kB/s) 512 bytes absorb ~44 ms of a continuous
-/// stream without any read, far more than the control code ever stalls the reader.
+/// Receive buffer size. At the default 115200 baud (11.5 kB/s) 512 bytes absorb ~44 ms of a
+/// continuous stream without any read, far more than the control code ever stalls the reader
+/// (still ~5 ms at 1 Mbaud).
 const RX_BUFFER_LEN: usize = 512;
 
+/// USART1 on PA9 (TX) / PA10 (RX) at `baud`, 8N1, DMA1 CH4 (TX) / CH5 (RX); reception starts
+/// at once. `baud` is `MasterConfig::baud`: the one place the link's rate is chosen.
 pub fn new(
+    baud: u32,
     usart: Peri<'static, USART1>,
     tx: Peri<'static, PA9>,
     rx: Peri<'static, PA10>,
@@ -31,16 +36,20 @@ pub fn new(
     rx_dma: Peri<'static, DMA1_CH5>,
     irqs: Irqs,
 ) -> (SerialTx, SerialRx) {
-    // 8 data bits, no parity, 1 stop bit are the defaults; the baud rate is spelled out because
-    // the host side must match it.
+    // 8 data bits, no parity, 1 stop bit are the defaults.
     let mut config = Config::default();
-    config.baudrate = 115_200;
+    config.baudrate = baud;
     // With the USB-serial adapter unplugged, RX would float and produce framing errors and
     // noise bytes; the pull-up holds it at the idle (mark) level. PA10 is 5 V tolerant.
     config.rx_pull = Pull::Up;
 
-    let uart = Uart::new(usart, rx, tx, tx_dma, rx_dma, irqs, config)
-        .unwrap_or_else(|_| defmt::panic!("USART1 rejected 115200 8N1 (impossible at 72 MHz)"));
+    // USART1 runs from APB2 (72 MHz): its divider reaches about 1.1 kbaud to 4.5 Mbaud.
+    let uart = Uart::new(usart, rx, tx, tx_dma, rx_dma, irqs, config).unwrap_or_else(|_| {
+        defmt::panic!(
+            "USART1 rejected MasterConfig::baud = {=u32} (8N1 from 72 MHz: ~1100..4500000)",
+            baud
+        )
+    });
     let (tx, rx) = uart.split();
 
     let buffer = cortex_m::singleton!(: [u8; RX_BUFFER_LEN] = [0; RX_BUFFER_LEN])

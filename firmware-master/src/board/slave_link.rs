@@ -13,7 +13,8 @@ use protocol::spi::SPI_FRAME_LEN;
 use super::Irqs;
 
 /// SCK rate. SPI1 runs from APB2 (72 MHz) through a power-of-two divider: /32 gives exactly
-/// 2.25 MHz, fast enough for a 64-byte frame in ~230 us and slow enough for the slave's DMA
+/// 2.25 MHz: a `SPI_FRAME_LEN` (128-byte) frame takes ~455 us, inside the 1 ms stream poll
+/// period with room for the slave to re-arm, and the rate is slow enough for the slave's DMA
 /// and for a few centimetres of wire between the boards.
 const SCK_HZ: u32 = 2_250_000;
 

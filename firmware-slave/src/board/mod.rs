@@ -12,8 +12,9 @@ mod spi_slave;
 
 use embassy_stm32::gpio::Output;
 use embassy_stm32::{bind_interrupts, dma, peripherals};
-// Linked for their side effects: the RTT transport behind `defmt` and the panic handler.
-use {defmt_rtt as _, panic_probe as _};
+// Linked for its side effect: the RTT transport behind `defmt`. The panic handler is
+// `bluepill`'s (no `panic-probe`: its `print-defmt` pulls in `core::fmt`).
+use defmt_rtt as _;
 
 pub use abs_encoder::AbsoluteEncoder;
 pub use exti::EdgeCapture;

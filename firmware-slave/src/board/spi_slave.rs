@@ -46,6 +46,9 @@ use protocol::spi::SPI_FRAME_LEN;
 use super::exti::Nss;
 use super::Irqs;
 
+// One DMA transfer moves a whole frame, and a DMA channel's counter (CNDTR) is 16 bits.
+const _: () = assert!(SPI_FRAME_LEN <= u16::MAX as usize);
+
 /// SPI1 slave with DMA1 CH2 (RX) / CH3 (TX), framed by NSS on PA4.
 pub struct SpiSlaveLink {
     /// PA4: the SPI's hardware NSS and, through EXTI4, the end-of-transaction signal.
