@@ -214,7 +214,7 @@ impl Controller {
             return;
         };
         self.counters.spi_ok = self.counters.spi_ok.wrapping_add(1);
-        self.slave_latest = Some(f.clone());
+        self.slave_latest = Some(f);
         self.counters.slave_rx_rejected = f.rx_rejected as u32;
         if f.command_ack == self.command_seq {
             if let Some(done) = self.commands.pop_front() {
