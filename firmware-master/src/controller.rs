@@ -521,7 +521,12 @@ mod tests {
                 protocol_version: PROTOCOL_VERSION,
             },
         );
-        assert!(matches!(ok, Some(MasterToHost::HelloReply { .. })));
+        let Some(MasterToHost::HelloReply(info)) = ok else {
+            panic!("hello must be answered with the board info, got {ok:?}")
+        };
+        assert_eq!(info.protocol_version, PROTOCOL_VERSION);
+        assert_eq!(info.schema_fingerprint, protocol::schema_fingerprint());
+        assert!(!info.slave_seen, "no slave frame yet");
     }
 
     #[test]
@@ -597,12 +602,140 @@ mod tests {
         assert_eq!((f.command_seq, f.command), (2, SlaveCommand::None));
         assert!(c.estimate(t(3)).is_some());
         // A flood beyond the queue is refused and stops the robot.
-        for _ in 0..4 {
+        for _ in 0..COMMAND_QUEUE {
             assert_eq!(c.on_host_message(t(4), HostToMaster::SetPose(p)), None);
         }
         assert_eq!(
             c.on_host_message(t(4), HostToMaster::SetPose(p)),
             Some(MasterToHost::Rejected(RejectReason::Busy))
+        );
+    }
+
+    fn events(seq: u16, bytes: &[u8]) -> HostToMaster {
+        HostToMaster::Events(protocol::link::DataFrame {
+            seq,
+            bytes: heapless::Vec::from_slice(bytes).unwrap(),
+        })
+    }
+
+    /// The master's ack of the host's event stream, which it sends next.
+    fn events_ack(c: &mut Controller, now: Instant) -> protocol::link::Ack {
+        match c.poll_host_stream(now) {
+            Some(MasterToHost::EventsAck(a)) => a,
+            other => panic!("expected an events ack, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn info_answers_without_restarting_the_streams_and_hello_restarts_them() {
+        let mut c = ctl();
+        let hello = HostToMaster::Hello {
+            protocol_version: PROTOCOL_VERSION,
+        };
+        assert!(c.on_host_message(t(0), hello.clone()).is_some());
+        c.on_slave_frame(
+            t(0),
+            Ok(SlaveFrame {
+                robot: 0xabcd,
+                period_us: 2_000,
+                ..slave_frame(1, 0, 0)
+            }),
+        );
+        c.on_host_message(t(1), events(0, &[1, 2, 3, 4]));
+        assert_eq!(events_ack(&mut c, t(1)).next, 4);
+
+        let reply = c.on_host_message(t(2), HostToMaster::Info);
+        let Some(MasterToHost::HelloReply(info)) = reply else {
+            panic!("info must be answered with the board info, got {reply:?}")
+        };
+        assert!(info.slave_seen);
+        assert_eq!((info.robot, info.period_us), (0xabcd, 2_000));
+        // The event stream goes on where it was.
+        c.on_host_message(t(3), events(4, &[5, 6]));
+        let ack = events_ack(&mut c, t(3));
+        assert_eq!((ack.next, ack.gap), (6, false));
+
+        // A hello starts a new session: the same continuation is now beyond the stream's start.
+        assert!(c.on_host_message(t(4), hello).is_some());
+        c.on_host_message(t(5), events(6, &[7]));
+        let ack = events_ack(&mut c, t(5));
+        assert_eq!((ack.next, ack.gap), (0, true));
+    }
+
+    #[test]
+    fn slave_commands_are_forwarded_in_order_each_until_acknowledged() {
+        use protocol::robot::{ExactPart, RobotHeader, WheelPart};
+        use protocol::spi::{Reports, SensorSource};
+        let mut c = ctl();
+        let sent = [
+            SlaveCommand::RobotWheel(WheelPart {
+                index: 0,
+                metres_per_count: 1e-4,
+                ..Default::default()
+            }),
+            SlaveCommand::RobotExact(ExactPart {
+                index: 0,
+                kx: 5,
+                ky: 6,
+                kth: 7,
+            }),
+            SlaveCommand::RobotCommit(RobotHeader {
+                encoders: 1,
+                fingerprint: 42,
+                ..Default::default()
+            }),
+            SlaveCommand::SetSource {
+                source: SensorSource::PlayedTicks,
+                reports: Reports::Poses,
+                start: Pose::default(),
+            },
+        ];
+        for cmd in sent {
+            assert_eq!(c.on_host_message(t(0), HostToMaster::Slave(cmd)), None);
+        }
+        let mut ack = 0;
+        for (i, cmd) in sent.iter().enumerate() {
+            let f = c.next_slave_frame();
+            assert_eq!(
+                (f.command_seq, &f.command),
+                (i as u8 + 1, cmd),
+                "command {i}"
+            );
+            // Not acknowledged: repeated, same number.
+            c.on_slave_frame(t(1), Ok(slave_frame(2 * i as u16, ack, 0)));
+            let again = c.next_slave_frame();
+            assert_eq!((again.command_seq, &again.command), (f.command_seq, cmd));
+            ack = f.command_seq;
+            c.on_slave_frame(t(1), Ok(slave_frame(2 * i as u16 + 1, ack, 0)));
+        }
+        assert_eq!(c.next_slave_frame().command, SlaveCommand::None);
+    }
+
+    #[test]
+    fn played_events_wait_for_the_pending_commands() {
+        use protocol::spi::{Reports, SensorSource};
+        let mut c = ctl();
+        let source = SlaveCommand::SetSource {
+            source: SensorSource::PlayedTicks,
+            reports: Reports::Poses,
+            start: Pose::default(),
+        };
+        c.on_host_message(t(0), HostToMaster::Slave(source));
+        c.on_host_message(t(0), events(0, &[1, 2, 3]));
+        // The slave has not switched to played sensors yet: the events are held.
+        for seq in 1..4 {
+            let f = c.next_slave_frame();
+            assert_eq!(f.command, source);
+            assert!(f.events.bytes.is_empty(), "frame {seq} carried events");
+            c.on_slave_frame(t(1), Ok(slave_frame(seq, 0, 0)));
+        }
+        // Applied: the events go out from the start of the slave's new stream.
+        c.on_slave_frame(t(2), Ok(slave_frame(4, 1, 0)));
+        let f = c.next_slave_frame();
+        assert_eq!(f.command, SlaveCommand::None);
+        assert_eq!(
+            (f.events.offset, f.events.bytes.as_slice()),
+            (0, &[1, 2, 3][..])
         );
     }
 

@@ -116,8 +116,10 @@ mod tests {
     #[test]
     fn events_flow_to_the_slave_and_reports_back_within_their_buffers() {
         let mut r = Relay::new();
-        let mut frame = DataFrame::default();
-        frame.bytes.extend_from_slice(&[1, 2, 3, 4]).unwrap();
+        let frame = DataFrame {
+            seq: 0,
+            bytes: heapless::Vec::from_slice(&[1, 2, 3, 4]).unwrap(),
+        };
         r.on_host_events(&frame);
         assert!(matches!(
             r.poll_host(0),
@@ -138,10 +140,23 @@ mod tests {
         };
         r.on_slave_frame(&f);
         assert_eq!(r.reports_next(), 2);
+        // No credit from the host yet: the first transmission is an empty probe.
         match r.poll_host(0) {
-            Some(MasterToHost::Reports(d)) => assert_eq!(&d.bytes[..], &[9, 9]),
-            // The first transmission may be a probe until the host's first ack opens credit.
-            other => assert!(other.is_none() || matches!(other, Some(MasterToHost::Reports(_)))),
+            Some(MasterToHost::Reports(d)) => assert_eq!((d.seq, d.bytes.len()), (0, 0)),
+            other => panic!("expected a probe, got {other:?}"),
+        }
+        // The host's answer opens its window: the reports follow.
+        r.on_host_ack(
+            Ack {
+                next: 0,
+                credit: 512,
+                gap: false,
+            },
+            1,
+        );
+        match r.poll_host(1) {
+            Some(MasterToHost::Reports(d)) => assert_eq!((d.seq, &d.bytes[..]), (0, &[9u8, 9][..])),
+            other => panic!("expected the reports, got {other:?}"),
         }
     }
 }

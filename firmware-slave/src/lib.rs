@@ -144,6 +144,7 @@ mod tests {
             seq: 1,
             command_seq: 4,
             command: set,
+            ..MasterFrame::default()
         };
         shared.receive(&frame);
         assert_eq!(shared.take_command(), Some((4, set)));
@@ -157,6 +158,7 @@ mod tests {
             seq: 3,
             command_seq: 5,
             command: SlaveCommand::None,
+            ..MasterFrame::default()
         });
         assert_eq!(shared.frame().command_ack, 5);
         assert_eq!(shared.take_command(), None);

@@ -102,7 +102,7 @@ impl Recorder {
     ) {
         self.flush(sink);
         self.updates = self.updates.wrapping_add(1);
-        if pose_every > 0 && self.updates.is_multiple_of(pose_every as u32) {
+        if pose_every > 0 && self.updates.is_multiple_of(u32::from(pose_every)) {
             let r = Report::PoseAt { t_us, pose };
             if !self.put(sink, &r) {
                 self.lost_updates = self.lost_updates.saturating_add(1);

@@ -1,11 +1,13 @@
 //! Framing behaviour: round trips, and that nothing corrupted is ever accepted.
 
 use proptest::prelude::*;
+use protocol::link::{Ack, DataFrame, MAX_CHUNK};
 use protocol::serial::{self, FrameDecoder, FrameError, HostToMaster, MovingTarget};
 use protocol::spi::{
-    self, MasterFrame, OdometryAlgorithm, SlaveCommand, SlaveFrame, SpiFrameError,
+    self, Chunk, MasterFrame, OdometryAlgorithm, Reports, SensorSource, SlaveCommand, SlaveFrame,
+    SpiFrameError, STREAM_CHUNK,
 };
-use protocol::{BinaryAngle, Point, Pose};
+use protocol::{BinaryAngle, Bytes, Point, Pose};
 
 fn arb_pose() -> impl Strategy<Value = Pose> {
     (any::<i32>(), any::<i32>(), any::<u32>()).prop_map(|(x_um, y_um, h)| Pose {
@@ -38,12 +40,62 @@ fn arb_host_msg() -> impl Strategy<Value = HostToMaster> {
         }),
         Just(HostToMaster::Stop),
         Just(HostToMaster::Heartbeat),
+        Just(HostToMaster::Info),
+        (arb_source(), arb_reports(), arb_pose()).prop_map(|(source, reports, start)| {
+            HostToMaster::Slave(SlaveCommand::SetSource {
+                source,
+                reports,
+                start,
+            })
+        }),
+        (
+            any::<u16>(),
+            prop::collection::vec(any::<u8>(), 0..=MAX_CHUNK)
+        )
+            .prop_map(|(seq, bytes)| {
+                HostToMaster::Events(DataFrame {
+                    seq,
+                    bytes: heapless::Vec::from_slice(&bytes).expect("at most MAX_CHUNK bytes"),
+                })
+            }),
+        any::<(u16, u16, bool)>().prop_map(|(next, credit, gap)| {
+            HostToMaster::ReportsAck(Ack { next, credit, gap })
+        }),
     ]
+}
+
+fn arb_source() -> impl Strategy<Value = SensorSource> {
+    prop_oneof![
+        Just(SensorSource::Counts),
+        Just(SensorSource::Ticks),
+        Just(SensorSource::PlayedCounts),
+        Just(SensorSource::PlayedTicks),
+    ]
+}
+
+fn arb_reports() -> impl Strategy<Value = Reports> {
+    prop_oneof![
+        Just(Reports::Off),
+        Just(Reports::Poses),
+        any::<u16>().prop_map(|pose_every| Reports::Record { pose_every }),
+    ]
+}
+
+/// A stream chunk anywhere in the stream, from empty to full.
+fn arb_chunk() -> impl Strategy<Value = Chunk> {
+    (
+        any::<u32>(),
+        prop::collection::vec(any::<u8>(), 0..=STREAM_CHUNK),
+    )
+        .prop_map(|(offset, bytes)| Chunk {
+            offset,
+            bytes: Bytes::from_slice_truncating(&bytes),
+        })
 }
 
 fn arb_slave_frame() -> impl Strategy<Value = SlaveFrame> {
     (
-        any::<(u16, u32, u32, [i32; 3], u16)>(),
+        any::<(u16, u32, u32)>(),
         arb_pose(),
         any::<(u16, u8, u16)>(),
         prop_oneof![
@@ -52,26 +104,62 @@ fn arb_slave_frame() -> impl Strategy<Value = SlaveFrame> {
             Just(OdometryAlgorithm::Lut),
             Just(OdometryAlgorithm::Timing)
         ],
+        any::<(u32, u32, u32)>(),
+        arb_source(),
+        arb_chunk(),
     )
         .prop_map(
             |(
-                (seq, time_us, armed_us, counts, abs_code),
+                (seq, time_us, armed_us),
                 pose,
                 (status, command_ack, rx_rejected),
                 algorithm,
+                (robot, period_us, events_next),
+                source,
+                reports,
             )| {
                 SlaveFrame {
                     seq,
                     time_us,
                     armed_us,
-                    counts,
-                    abs_code,
                     pose,
                     status,
                     command_ack,
                     rx_rejected,
                     algorithm,
+                    robot,
+                    source,
+                    period_us,
+                    events_next,
+                    reports,
                 }
+            },
+        )
+}
+
+fn arb_master_frame() -> impl Strategy<Value = MasterFrame> {
+    (
+        any::<(u16, u8, u32)>(),
+        prop_oneof![
+            Just(SlaveCommand::None),
+            arb_pose().prop_map(SlaveCommand::SetPose),
+            (arb_source(), arb_reports(), arb_pose()).prop_map(|(source, reports, start)| {
+                SlaveCommand::SetSource {
+                    source,
+                    reports,
+                    start,
+                }
+            }),
+        ],
+        arb_chunk(),
+    )
+        .prop_map(
+            |((seq, command_seq, reports_next), command, events)| MasterFrame {
+                seq,
+                command_seq,
+                command,
+                events,
+                reports_next,
             },
         )
 }
@@ -131,6 +219,18 @@ proptest! {
         bytes[bit / 8] ^= 1 << (bit % 8);
         prop_assert_eq!(spi::decode::<SlaveFrame>(&bytes), Err(SpiFrameError::Crc));
     }
+
+    #[test]
+    fn spi_master_round_trip(f in arb_master_frame()) {
+        prop_assert_eq!(spi::decode::<MasterFrame>(&spi::encode(&f)), Ok(f));
+    }
+
+    #[test]
+    fn spi_master_bit_flip_is_rejected(f in arb_master_frame(), bit in 0usize..(spi::SPI_FRAME_LEN * 8)) {
+        let mut bytes = spi::encode(&f);
+        bytes[bit / 8] ^= 1 << (bit % 8);
+        prop_assert_eq!(spi::decode::<MasterFrame>(&bytes), Err(SpiFrameError::Crc));
+    }
 }
 
 #[test]
@@ -160,6 +260,11 @@ fn master_frame_round_trip() {
             y_um: i32::MAX,
             heading: BinaryAngle(12345),
         }),
+        events: Chunk {
+            offset: u32::MAX,
+            bytes: Bytes::from_slice_truncating(&[0xff; STREAM_CHUNK]),
+        },
+        reports_next: u32::MAX,
     };
     assert_eq!(spi::decode(&spi::encode(&f)), Ok(f));
 }

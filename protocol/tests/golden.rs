@@ -2,11 +2,12 @@
 //! the firmware and every host tool built before the change can no longer talk to the new
 //! build: bump `PROTOCOL_VERSION` and update the bytes deliberately.
 
-use protocol::serial::{self, HostToMaster, MasterToHost, MovingTarget, Telemetry};
+use protocol::serial::{self, BoardInfo, HostToMaster, MasterToHost, MovingTarget, Telemetry};
 use protocol::spi::{
-    self, MasterFrame, OdometryAlgorithm, SlaveCommand, SlaveFrame, SPI_FRAME_LEN,
+    self, Chunk, MasterFrame, OdometryAlgorithm, Report, Reports, SensorSource, SlaveCommand,
+    SlaveFrame, SPI_FRAME_LEN,
 };
-use protocol::{BinaryAngle, Point, Pose};
+use protocol::{BinaryAngle, Bytes, Point, Pose, PROTOCOL_VERSION};
 
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
@@ -19,13 +20,47 @@ fn serial_hex<T: serde::Serialize>(msg: &T) -> String {
 
 #[test]
 fn hello_frame_bytes() {
-    // postcard: variant 0, u16 1 as varint -> 00 01; then CRC-32 LE; COBS; delimiter.
+    // postcard: variant 0, u16 2 as varint -> 00 02; then CRC-32 LE; COBS; delimiter.
+    assert_eq!(PROTOCOL_VERSION, 2, "a new version needs new golden bytes");
     assert_eq!(
         serial_hex(&HostToMaster::Hello {
-            protocol_version: 1
+            protocol_version: PROTOCOL_VERSION
         }),
         GOLDEN_HELLO
     );
+}
+
+#[test]
+fn set_source_frame_bytes() {
+    // Host -> master, new in v2: a command queued for the slave.
+    let msg = HostToMaster::Slave(SlaveCommand::SetSource {
+        source: SensorSource::PlayedTicks,
+        reports: Reports::Record { pose_every: 300 },
+        start: Pose {
+            x_um: 1_000,
+            y_um: -2_000,
+            heading: BinaryAngle(1 << 31),
+        },
+    });
+    assert_eq!(serial_hex(&msg), GOLDEN_SET_SOURCE);
+}
+
+#[test]
+fn hello_reply_frame_bytes() {
+    // Master -> host, new in v2: the board info answering Hello and Info.
+    let msg = MasterToHost::HelloReply(BoardInfo {
+        protocol_version: PROTOCOL_VERSION,
+        schema_fingerprint: 0x1234_5678,
+        firmware_version: [0, 2, 1],
+        master_uid: [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12],
+        slave_seen: true,
+        robot: 0xdead_beef,
+        source: SensorSource::Ticks,
+        period_us: 1_000,
+        algorithm: OdometryAlgorithm::Exact,
+        baud: 921_600,
+    });
+    assert_eq!(serial_hex(&msg), GOLDEN_HELLO_REPLY);
 }
 
 #[test]
@@ -72,8 +107,6 @@ fn spi_frames_bytes() {
         seq: 7,
         time_us: 123_456,
         armed_us: 124_000,
-        counts: [1000, -1000, 0],
-        abs_code: 64,
         pose: Pose {
             x_um: 1,
             y_um: -1,
@@ -83,17 +116,45 @@ fn spi_frames_bytes() {
         command_ack: 2,
         rx_rejected: 0,
         algorithm: OdometryAlgorithm::Exact,
+        robot: 0x0102_0304,
+        source: SensorSource::PlayedTicks,
+        period_us: 2_000,
+        events_next: 300,
+        reports: Chunk {
+            offset: 70_000,
+            bytes: report_bytes(),
+        },
     };
     let master = MasterFrame {
         seq: 9,
         command_seq: 3,
         command: SlaveCommand::SetPose(Pose::default()),
+        events: Chunk {
+            offset: 256,
+            bytes: Bytes::from_slice_truncating(&[0x10, 0x20, 0x30]),
+        },
+        reports_next: 70_000,
     };
     let s = spi::encode(&slave);
     let m = spi::encode(&master);
     assert_eq!(s.len(), SPI_FRAME_LEN);
     assert_eq!(hex(&s), GOLDEN_SLAVE_FRAME);
     assert_eq!(hex(&m), GOLDEN_MASTER_FRAME);
+}
+
+/// A report chunk holding one `Report::Pose` record, as the slave streams it while playing.
+fn report_bytes() -> Bytes<{ spi::STREAM_CHUNK }> {
+    let report = Report::Pose {
+        pose: Pose {
+            x_um: 5,
+            y_um: -6,
+            heading: BinaryAngle(7),
+        },
+        digest: 0xcafe_f00d,
+    };
+    let mut buf = [0u8; spi::STREAM_CHUNK];
+    let wire = postcard::to_slice(&report, &mut buf).expect("a pose report fits a chunk");
+    Bytes::from_slice_truncating(wire)
 }
 
 #[test]
@@ -105,10 +166,13 @@ fn fingerprint_is_pinned() {
     );
 }
 
-const GOLDEN_HELLO: &str = "0106016922de3600";
+const GOLDEN_HELLO: &str = "010602d373d7af00";
+const GOLDEN_SET_SOURCE: &str = "1407060302ac02d00f9f1f8080808008f6a586b400";
+const GOLDEN_HELLO_REPLY: &str =
+    "010702f8acd191011802010102030405060708090a0b0c01effdb6f50d01e8070880a0385832ee2800";
 const GOLDEN_FOLLOW: &str = "020213809bee02c096b102809bee02b0ae15c0cf24050aeaac0a00";
 const GOLDEN_TELEMETRY: &str =
     "0f01c0843dd8fc3c1744808080800401010bc8018f03d8040203060501010101060171ce365200";
-const GOLDEN_SLAVE_FRAME: &str = "07c0c407e0c807d00fcf0f00400201ffffffff0f0102000000000000000000000000000000000000000000000000000000000000000000000000000000002a79";
-const GOLDEN_MASTER_FRAME: &str = "09030100000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000d1b";
-const GOLDEN_FINGERPRINT: &str = "603c973e";
+const GOLDEN_SLAVE_FRAME: &str = "07c0c407e0c8070201ffffffff0f010200008486880803d00fac02f0a20409000a0b078de0fbd70c00000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000004d28";
+const GOLDEN_MASTER_FRAME: &str = "090301000000800203102030f0a2040000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000003700";
+const GOLDEN_FINGERPRINT: &str = "8148b89b";
