@@ -116,3 +116,61 @@ fn bad_arguments_fail_clearly_and_write_nothing() {
         .unwrap();
     assert!(!out.status.success());
 }
+
+fn tickstream_data(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/tickstreams")
+        .join(name)
+}
+
+/// docs/tick-stream.md's Python example: 1 cm counts on a 0.2 m axle turn the body 0.05 rad a
+/// count, which every estimator takes (they once all refused it and the run still exited 0).
+#[test]
+fn replay_scores_the_documented_python_example_with_every_method() {
+    let out = host_bench()
+        .args(["replay", "--json", "--ticks"])
+        .arg(tickstream_data("python-circle.csv"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let names: Vec<&str> = v["algorithms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["arc", "lut", "timing", "exact"], "{v}");
+    assert!(v["skipped"].as_array().unwrap().is_empty(), "{v}");
+    for a in v["algorithms"].as_array().unwrap() {
+        // One lap of 3.14 m in 1 cm counts: every method ends within a count of the start.
+        let e = a["final_error_m"].as_f64().unwrap();
+        assert!(e < 0.01, "{a}");
+    }
+}
+
+/// A run where no estimator applies names each reason and fails, rather than printing an
+/// empty table and exiting 0.
+#[test]
+fn replay_that_scores_nothing_fails_with_the_reasons() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = std::fs::read_to_string(tickstream_data("diff-drive.toml"))
+        .unwrap()
+        .replace("metres_per_count = 0.01", "metres_per_count = 1.0");
+    let robot_path = dir.path().join("one-metre-counts.toml");
+    std::fs::write(&robot_path, robot).unwrap();
+    let out = host_bench()
+        .args(["replay", "--robot"])
+        .arg(&robot_path)
+        .arg("--ticks")
+        .arg(tickstream_data("python-circle.csv"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("no estimator can run"), "{stderr}");
+    assert!(stderr.contains("per count"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(out.stdout.is_empty());
+}

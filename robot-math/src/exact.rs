@@ -29,12 +29,19 @@ use crate::wheelset::WheelSolver;
 /// Most encoders the fixed-point integrator takes.
 pub const MAX_ENCODERS: usize = 4;
 
-/// Every per-count constant is below this in magnitude (the chunking's bounds rely on it).
-const MAX_CONSTANT: i64 = 1 << 40;
+/// Displacement per count is below this in magnitude, 2^40 Q44 = 1/16 m (the chunking's
+/// bounds and the fraction products rely on it).
+const MAX_DISPLACEMENT_CONSTANT: i64 = 1 << 40;
+/// Turn per count is below this in magnitude, 2^46 × 2^-48 = a quarter turn. The heading sum
+/// wraps exactly whatever its size; the bound keeps `turn_per_count` far from overflow.
+/// (Coarse encoders on a short axle turn a lot per count: 1 cm counts 20 cm apart are
+/// 0.05 rad, 2^41.2 units.)
+const MAX_TURN_CONSTANT: i64 = 1 << 46;
 
 /// Per-chunk limits that keep every 64-bit product in range.
 const MAX_CHUNK_DISPLACEMENT_Q44: i64 = 1 << 43; // 0.5 m
-const MAX_CHUNK_TURN: u64 = 1 << 61; // 1/8 turn
+/// 1/8 turn, in the unit of `turn_per_count` × whole counts: 2^-48 turns.
+const MAX_CHUNK_TURN_48: u64 = 1 << 45;
 
 /// Integer constants of a sensor layout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -70,9 +77,9 @@ impl ExactParams {
             return Err(ExactParamsError::TooManyEncoders);
         }
         let pinv = solver.pseudo_inverse();
-        let to_fixed = |v: f64, scale: f64| -> Result<i64, ExactParamsError> {
+        let to_fixed = |v: f64, scale: f64, max: i64| -> Result<i64, ExactParamsError> {
             let f = libm::round(v * scale);
-            if f.is_finite() && f.abs() < MAX_CONSTANT as f64 {
+            if f.is_finite() && f.abs() < max as f64 {
                 Ok(f as i64)
             } else {
                 Err(ExactParamsError::OutOfRange)
@@ -83,9 +90,9 @@ impl ExactParams {
         const TURN_48: f64 = (1u64 << 48) as f64 / (2.0 * core::f64::consts::PI);
         for j in 0..n {
             let k = metres_per_count[j];
-            kx[j] = to_fixed(pinv[0][j] * k, Q44)?;
-            ky[j] = to_fixed(pinv[1][j] * k, Q44)?;
-            kth[j] = to_fixed(pinv[2][j] * k, TURN_48)?;
+            kx[j] = to_fixed(pinv[0][j] * k, Q44, MAX_DISPLACEMENT_CONSTANT)?;
+            ky[j] = to_fixed(pinv[1][j] * k, Q44, MAX_DISPLACEMENT_CONSTANT)?;
+            kth[j] = to_fixed(pinv[2][j] * k, TURN_48, MAX_TURN_CONSTANT)?;
         }
         Self::from_raw(n, kx, ky, kth)
     }
@@ -93,7 +100,8 @@ impl ExactParams {
     /// Rebuild the constants from their raw integers (as [`kx`](Self::kx), [`ky`](Self::ky),
     /// [`kth`](Self::kth) give them, e.g. shipped over a wire): the same integers give the
     /// same integrator, bit for bit. Entries past `n` must be zero (unused encoders move
-    /// nothing); every constant must be below 2^40 in magnitude. Integer-only.
+    /// nothing); `kx`, `ky` must be below 2^40 in magnitude (1/16 m per count), `kth` below
+    /// 2^46 (a quarter turn per count). Integer-only.
     pub const fn from_raw(
         n: usize,
         kx: [i64; MAX_ENCODERS],
@@ -108,10 +116,15 @@ impl ExactParams {
         let mut j = 0;
         while j < MAX_ENCODERS {
             let ks = [kx[j], ky[j], kth[j]];
+            let max = [
+                MAX_DISPLACEMENT_CONSTANT,
+                MAX_DISPLACEMENT_CONSTANT,
+                MAX_TURN_CONSTANT,
+            ];
             let mut i = 0;
             while i < 3 {
                 // `unsigned_abs` so i64::MIN cannot overflow.
-                if ks[i].unsigned_abs() >= MAX_CONSTANT as u64 || (j >= n && ks[i] != 0) {
+                if ks[i].unsigned_abs() >= max[i] as u64 || (j >= n && ks[i] != 0) {
                     return Err(ExactParamsError::OutOfRange);
                 }
                 i += 1;
@@ -265,7 +278,7 @@ impl ExactOdometry {
         let whole_counts = (biggest >> 16) + 1;
         let disp = whole_counts.saturating_mul(self.p.disp_per_count);
         let turn = (whole_counts as u64).saturating_mul(self.p.turn_per_count);
-        let chunks = (disp / MAX_CHUNK_DISPLACEMENT_Q44).max((turn / MAX_CHUNK_TURN) as i64) + 1;
+        let chunks = (disp / MAX_CHUNK_DISPLACEMENT_Q44).max((turn / MAX_CHUNK_TURN_48) as i64) + 1;
         if chunks == 1 {
             self.step(&dq);
         } else {
@@ -476,6 +489,19 @@ mod tests {
         // 10 m in one update (100 000 counts): chunked internally, still on the line.
         let (f, _, truth) = drive(Twist::new(10.0, 0.0, 0.0), 1.0, 1, Pose2::default());
         assert_close(f, truth, 1e-6, "fixed");
+    }
+
+    #[test]
+    fn big_turns_in_one_update_are_split_too() {
+        // 0.4 and 0.7 of a turn in a single update, driving forwards: split into chunks of at
+        // most 1/8 turn, where the sinc series holds (one step would be off by millimetres,
+        // and past half a turn would turn the wrong way round the arc).
+        for turns in [0.4, 0.7] {
+            let w = turns * 2.0 * PI;
+            let (f, o, truth) = drive(Twist::new(0.1, 0.0, w), 1.0, 1, Pose2::default());
+            assert_close(o, truth, 1e-9, "oracle");
+            assert_close(f, truth, 1e-6, "fixed");
+        }
     }
 
     #[test]

@@ -176,6 +176,21 @@ pub fn run_replay(
             Err(e) => return Err(e),
         }
     }
+    // A run that scores nothing is a failure, not an empty table.
+    if scores.is_empty() {
+        let reason = |k: &serde_json::Value| k["reason"].as_str().unwrap_or("").to_string();
+        let mut reasons: Vec<String> = skipped.iter().map(reason).collect();
+        reasons.dedup();
+        let why = if reasons.len() == 1 {
+            reasons.remove(0)
+        } else {
+            let each = |k: &serde_json::Value| {
+                format!("{}: {}", k["name"].as_str().unwrap_or(""), reason(k))
+            };
+            skipped.iter().map(each).collect::<Vec<_>>().join("; ")
+        };
+        anyhow::bail!("{}: no estimator can run: {why}", ticks.display());
+    }
     if let Some(dir) = &out {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;

@@ -111,7 +111,8 @@ impl fmt::Display for LayoutError {
             }
             LayoutError::OutOfFixedPointRange => write!(
                 f,
-                "a per-count constant does not fit exact's fixed-point format (absurd sizes?)"
+                "a count moves the body too far for exact's fixed point (at most 1/16 m and a \
+                 quarter turn per count)"
             ),
             LayoutError::CarriageEncoders(n) => write!(
                 f,

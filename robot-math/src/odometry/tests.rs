@@ -142,6 +142,39 @@ fn a_layout_rebuilt_from_its_parts_is_the_same_bits() {
     assert!(ExactParams::from_raw(2, [1 << 40, 0, 0, 0], [0; 4], [0; 4]).is_err());
     assert!(ExactParams::from_raw(2, [0, 0, 5, 0], [0; 4], [0; 4]).is_err());
     assert!(ExactParams::from_raw(2, [i64::MIN, 0, 0, 0], [0; 4], [0; 4]).is_err());
+    // Turn per count has its own, wider bound: a quarter turn.
+    assert!(ExactParams::from_raw(2, [0; 4], [0; 4], [(1 << 46) - 1, 0, 0, 0]).is_ok());
+    assert!(ExactParams::from_raw(2, [0; 4], [0; 4], [1 << 46, 0, 0, 0]).is_err());
+}
+
+#[test]
+fn coarse_encoders_on_a_short_axle_are_a_layout_every_method_runs() {
+    // docs/tick-stream.md's example robot: 1 cm counts, 0.2 m apart, 0.05 rad per count
+    // (past the 2^40 bound turn constants once had).
+    let coarse = 0.01;
+    let layout = Layout::from_geometry(
+        &[
+            (Wheel::at(0.0, 0.1, 0.0), coarse),
+            (Wheel::at(0.0, -0.1, 0.0), coarse),
+        ],
+        None,
+        None,
+    )
+    .unwrap();
+    let tw = Twist::new(0.4, 0.0, 0.8);
+    for sensors in [SensorKind::Counts, SensorKind::Ticks] {
+        for method in Method::ALL {
+            if method == Method::Timing && sensors == SensorKind::Counts {
+                continue;
+            }
+            let (e, th) = drive(&layout, method, sensors, tw);
+            // Within two counts of travel and of turn.
+            assert!(
+                e < 2.0 * coarse && th < 2.0 * coarse / 0.2,
+                "{method} {sensors:?}: {e} m, {th} rad"
+            );
+        }
+    }
 }
 
 /// A count sequence with uneven steps on both wheels and a swinging swivel.
