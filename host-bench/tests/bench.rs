@@ -358,3 +358,78 @@ fn a_recording_replays_against_its_truth() {
         dir.path().join("rec.board.csv").is_file() && dir.path().join("rec.robot.toml").is_file()
     );
 }
+
+/// A differential axle of our own: 4 cm ahead of the reference point, off its centre line.
+const OFFSET_AXLE: &str = r#"
+format = "omnibench robot v1"
+name = "offset-axle"
+[[encoders]]
+name = "left"
+x_m = 0.04
+y_m = 0.11
+direction_deg = 0.0
+metres_per_count = 0.0002
+[[encoders]]
+name = "right"
+x_m = 0.04
+y_m = -0.16
+direction_deg = 0.0
+metres_per_count = 0.0002
+"#;
+
+#[test]
+fn a_virtual_board_of_our_own_robot_records_what_replay_and_the_board_agree_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot_path = dir.path().join("offset-axle.toml");
+    std::fs::write(&robot_path, OFFSET_AXLE).unwrap();
+    let layout = Robot::load(&robot_path).unwrap().odometry_layout().unwrap();
+    let board = Board::start(virtual_board::Options::for_robot(layout));
+    let mut link = board.link();
+    // The slave holds another robot than its power-on one: a recording must name it.
+    let out = dir.path().join("unnamed.csv");
+    let e = record::record(&mut link, &request(&out, None, false)).unwrap_err();
+    assert!(format!("{e:#}").contains("--robot"), "{e:#}");
+    assert!(!out.exists());
+
+    for counts in [false, true] {
+        let out = dir.path().join(format!("rec-{counts}.csv"));
+        let o = record::record(
+            &mut link,
+            &request(&out, Some(robot_path.as_path()), counts),
+        )
+        .unwrap();
+        assert_eq!((o.lost_events, o.lost_updates), (0, 0), "{o:?}");
+        let stream = tickstream::read(&out).unwrap();
+        let robot = Robot::load(&stream.robot_path(&out).unwrap()).unwrap();
+        let score = host_bench::eval::replay::replay(
+            &robot,
+            &stream,
+            "exact",
+            host_bench::eval::replay::Mode::Timestamps,
+        )
+        .unwrap();
+        // A few decimetres at 0.2 mm counts: within two counts of the truth.
+        assert!(score.path_length_m > 0.3, "{score:?}");
+        assert!(score.final_error_m < 4e-4, "counts {counts}: {score:?}");
+        let b = host_bench::eval::board_poses::score(
+            &dir.path().join(format!("rec-{counts}.board.csv")),
+            &stream,
+        )
+        .unwrap()
+        .expect("board poses inside the truth");
+        assert!(
+            b.rows >= 30 && b.final_error_m < 4e-4,
+            "counts {counts}: {b:?}"
+        );
+    }
+}
+
+fn request<'a>(out: &'a Path, robot: Option<&'a Path>, counts: bool) -> record::RecordRequest<'a> {
+    record::RecordRequest {
+        out,
+        duration_s: Some(2.0),
+        counts,
+        robot,
+        progress: None,
+    }
+}

@@ -200,4 +200,23 @@ fn record_writes_a_stream_that_replay_scores() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let err = v["algorithms"][0]["final_error_m"].as_f64().unwrap();
     assert!(err < 5e-3, "{v}");
+    // The board's own poses, beside the stream, scored too.
+    assert!(v["board"]["rows"].as_u64().unwrap() > 10, "{v}");
+    assert!(v["board"]["final_error_m"].as_f64().unwrap() < 5e-3, "{v}");
+}
+
+#[test]
+fn virtual_board_refuses_a_robot_the_slave_board_cannot_read() {
+    // Seed 000's three encoders: the slave board has two quadrature inputs.
+    let out = Command::new(BIN)
+        .args(["virtual-board", "--robot", &data("seed000-0.1mm.toml")])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("seed000-0.1mm.toml") && err.contains("2 quadrature encoders"),
+        "{err}"
+    );
+    assert!(out.stdout.is_empty(), "no port is offered");
 }

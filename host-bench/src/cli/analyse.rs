@@ -234,10 +234,12 @@ pub fn run_replay(
         }
         if let Some(b) = &board {
             println!(
-                "{:<8} final error {:9.4} mm, max {:9.4} mm ({} poses the board computed live, {})",
+                "{:<8} final error {:9.4} mm, max {:9.4} mm, final heading error {:+.5} deg \
+                 ({} poses the board computed live, from its first: {})",
                 "board",
                 b.final_error_m * 1e3,
                 b.max_error_m * 1e3,
+                b.final_heading_error_rad.to_degrees(),
                 b.rows,
                 b.file
             );

@@ -240,6 +240,11 @@ pub struct VirtualBoardArgs {
     /// Seed for the encoders' power-on phase.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The simulated robot (docs/robot-format.md; two encoders, as the slave board reads),
+    /// loaded in the slave as if `play`/`record --robot` had sent it [default: seed 004, the
+    /// slave's power-on robot].
+    #[arg(long, value_name = "FILE")]
+    pub robot: Option<std::path::PathBuf>,
     /// Fault injection: answer the handshake with this schema fingerprint (hex) instead of
     /// the real one, as a board flashed from another version would.
     #[arg(long, value_name = "HEX")]
@@ -247,21 +252,45 @@ pub struct VirtualBoardArgs {
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
+    let (layout, robot_name) = match &a.robot {
+        Some(path) => {
+            let robot = host_bench::formats::robot::Robot::load(path)?;
+            (robot.odometry_layout()?, robot.name)
+        }
+        None => (
+            robot_math::odometry::Layout::SEED_004,
+            "seed 004".to_string(),
+        ),
+    };
     let mut opts = virtual_board::Options {
         seed: a.seed,
-        ..Default::default()
+        ..virtual_board::Options::for_robot(layout)
     };
     if let Some(s) = &a.fault_schema {
         let fp = u32::from_str_radix(s.trim_start_matches("0x"), 16)
             .with_context(|| format!("--fault-schema {s:?} is not a hex number"))?;
         opts.faults.schema = Some(fp);
     }
+    // Refuse a robot the board cannot simulate before printing a port.
+    host_bench::sim::plant::MeasuringSensors::from_layout(&opts.slave.layout).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: the virtual board cannot simulate robot {robot_name}: {e}",
+            a.robot
+                .as_deref()
+                .unwrap_or(std::path::Path::new("seed 004"))
+                .display()
+        )
+    })?;
     let (pty, _slave_end, name) = virtual_board::open_pty()?;
     // The first line is the port, for scripts: `port: /dev/pts/N`.
     println!("port: {name}");
     use std::io::Write;
     std::io::stdout().flush()?;
-    eprintln!("virtual board (seed 004 robot driven round a 1 m square) serving; Ctrl-C ends it");
+    eprintln!(
+        "virtual board (robot {robot_name}, driven round a {} m square at {:.3} m/s) serving; \
+         Ctrl-C ends it",
+        opts.course_side, opts.course_speed
+    );
     virtual_board::serve(pty, &opts, &|| false)
 }
 

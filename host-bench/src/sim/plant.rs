@@ -1,15 +1,92 @@
 //! The simulated robot: seed 004's platform. Three driven omni wheels (seed 003 layout) with a
-//! first-order motor response, and a trailing measuring carriage whose two wheels and swivel
-//! angle produce exactly the counts and codes the real encoders would.
+//! first-order motor response, and the slave's two measuring encoders: on seed 004's trailing
+//! carriage (two wheels and a swivel angle), or on two wheels fixed to the body (a robot
+//! file's differential axle). Either way they produce exactly the counts and codes the real
+//! encoders would.
 //!
 //! The state is integrated with classic RK4 on small steps; the motor speeds inside a step
 //! follow their exact exponential, so the only approximation is RK4's (nanometres here).
 //! Ground truth is the body pose at every instant.
 
 use robot_math::carriage::CarriageGeometry;
+use robot_math::odometry::{AbsLayout, Layout};
 use robot_math::omni3::Omni3;
 use robot_math::se2::wrap_angle;
+use robot_math::sensors::binary_to_gray;
+use robot_math::wheel::Wheel;
 use robot_math::{Pose2, Twist};
+
+/// What the slave's two quadrature encoders (and its eight absolute-encoder pins) measure.
+#[derive(Clone, Copy, Debug)]
+pub enum MeasuringSensors {
+    /// A trailing swivel carriage (seed 004): its two wheels, and the swivel angle on the
+    /// absolute encoder, whose pins show the code in `abs`'s output format.
+    Carriage {
+        geometry: CarriageGeometry,
+        abs: AbsLayout,
+    },
+    /// Two measuring wheels fixed to the body; the absolute-encoder pins read nothing.
+    Wheels {
+        wheels: [Wheel; 2],
+        metres_per_count: [f64; 2],
+    },
+}
+
+impl MeasuringSensors {
+    /// Seed 004's carriage and its E6CP-AG5C.
+    pub const SEED_004: MeasuringSensors = MeasuringSensors::Carriage {
+        geometry: CarriageGeometry::SEED_004,
+        abs: AbsLayout::E6CP_AG5C,
+    };
+
+    /// The sensors a robot's odometry layout describes, if the slave board can read them: two
+    /// quadrature encoders, and an absolute encoder of at most 8 bits (its 8 input pins).
+    pub fn from_layout(layout: &Layout) -> Result<Self, String> {
+        if layout.encoders() != 2 {
+            return Err(format!(
+                "the slave board reads 2 quadrature encoders, this robot has {} (play its \
+                 streams instead: play feeds any layout)",
+                layout.encoders()
+            ));
+        }
+        let [w0, w1, ..] = *layout.wheels();
+        let [k0, k1, ..] = *layout.metres_per_count();
+        match (layout.carriage_geometry(), layout.abs()) {
+            (Some(geometry), Some(abs)) => {
+                let on_axle = |w: Wheel| w.x.abs() < 1e-12 && (w.ux - 1.0).abs() < 1e-12;
+                if !(on_axle(w0) && on_axle(w1) && (w0.y + w1.y).abs() < 1e-12 && w0.y > 0.0) {
+                    return Err(
+                        "a simulated carriage has its wheels left and right on the axle \
+                                through the carriage origin, rolling along +x"
+                            .into(),
+                    );
+                }
+                if abs.bits > 8 {
+                    return Err(format!(
+                        "the slave board has 8 absolute-encoder pins, the swivel encoder has {} bits",
+                        abs.bits
+                    ));
+                }
+                Ok(MeasuringSensors::Carriage { geometry, abs })
+            }
+            (Some(_), None) => Err("a carriage needs its swivel encoder".into()),
+            (None, _) => Ok(MeasuringSensors::Wheels {
+                wheels: [w0, w1],
+                metres_per_count: [k0, k1],
+            }),
+        }
+    }
+
+    /// Travel per count of the two encoders, metres.
+    pub fn metres_per_count(&self) -> [f64; 2] {
+        match *self {
+            MeasuringSensors::Carriage { geometry, .. } => geometry.metres_per_count,
+            MeasuringSensors::Wheels {
+                metres_per_count, ..
+            } => metres_per_count,
+        }
+    }
+}
 
 /// Physical parameters of the simulated robot.
 #[derive(Clone, Copy, Debug)]
@@ -20,14 +97,14 @@ pub struct PlantConfig {
     pub speed_at_full_duty: f64,
     /// Motor time constant, seconds (first-order response to a duty step).
     pub motor_tau: f64,
-    pub carriage: CarriageGeometry,
+    pub sensors: MeasuringSensors,
 }
 
 /// Continuous state of the robot.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct State {
     body: Pose2,
-    /// Carriage heading φ.
+    /// Carriage heading φ (with body-fixed wheels: the body heading plus a constant).
     phi: f64,
     /// Rolling distance of each measuring wheel since the start, metres.
     rolled: [f64; 2],
@@ -102,7 +179,7 @@ impl Plant {
     /// Each encoder's position in counts (fractional), relative to its power-on count.
     fn encoder_positions(&self, s: &State) -> [f64; 2] {
         core::array::from_fn(|i| {
-            s.rolled[i] / self.cfg.carriage.metres_per_count[i] + self.encoder_phase[i]
+            s.rolled[i] / self.cfg.sensors.metres_per_count()[i] + self.encoder_phase[i]
                 - self.encoder_phase[i].floor()
         })
     }
@@ -118,9 +195,27 @@ impl Plant {
         wrap_angle(self.state.phi - self.state.body.theta)
     }
 
-    /// The absolute encoder's code now.
+    /// The absolute encoder's code now (0 without one).
     pub fn abs_code(&self) -> u16 {
-        self.cfg.carriage.abs_code(self.swivel())
+        match self.cfg.sensors {
+            MeasuringSensors::Carriage { geometry, .. } => geometry.abs_code(self.swivel()),
+            MeasuringSensors::Wheels { .. } => 0,
+        }
+    }
+
+    /// The levels on the slave's eight absolute-encoder pins now: the code in the encoder's
+    /// output format (Gray, active-low, as the layout says).
+    pub fn abs_pins(&self) -> u8 {
+        let mut raw = self.abs_code();
+        if let MeasuringSensors::Carriage { abs, .. } = self.cfg.sensors {
+            if abs.gray {
+                raw = binary_to_gray(raw);
+            }
+            if abs.inverted {
+                raw = !raw;
+            }
+        }
+        raw as u8
     }
 
     /// Advance the physics by `dt` seconds, sub-stepping so no step exceeds `max_step`.
@@ -196,7 +291,16 @@ impl Plant {
         // Velocity of the body reference point (the swivel pivot) in the field frame.
         let vx = c * twist.vx - s * twist.vy;
         let vy = s * twist.vx + c * twist.vy;
-        let g = &self.cfg.carriage;
+        let g = match self.cfg.sensors {
+            MeasuringSensors::Carriage { geometry, .. } => geometry,
+            MeasuringSensors::Wheels { wheels, .. } => {
+                return State {
+                    body: Pose2::new(vx, vy, twist.omega),
+                    phi: twist.omega,
+                    rolled: wheels.map(|w| w.rolling_speed(twist)),
+                };
+            }
+        };
         let (sp, cp) = y.phi.sin_cos();
         // The axle trails the pivot and cannot slide sideways: it swings to follow.
         let phi_dot = (-sp * vx + cp * vy) / g.trail;
@@ -235,7 +339,7 @@ mod tests {
             drive: Omni3::new(0.22, 1.0).unwrap(),
             speed_at_full_duty: 1.0,
             motor_tau: 0.05,
-            carriage: CarriageGeometry::SEED_004,
+            sensors: MeasuringSensors::SEED_004,
         }
     }
 

@@ -4,12 +4,17 @@
 //! ```text
 //!  play/record ── /dev/pts/N ══ pty ══ bridge ── UartLine x2 (115200 8N1) ──► firmware_master::run ── SpiWire ──► firmware_slave::run
 //!                                        │ (SimTruth every 10 ms)                                               ▲ encoders, absolute encoder
-//!                                        └────────────── Plant (seed 004's robot, driven round a square) ───────┘
+//!                                        └────────────── Plant (the slave's robot, driven round a square) ──────┘
 //! ```
-//! The simulated robot is driven round a 1 m square course at 0.05 m/s by the virtual board itself, as if
+//! The simulated robot is driven round a 1 m square course by the virtual board itself, as if
 //! pushed by hand (the master gets no goal, and its motor outputs go nowhere), so `record`
 //! has something to record. Only a simulated board can send the truth; it does, as
 //! [`MasterToHost::SimTruth`] frames between the master's own.
+//!
+//! The robot is the slave's layout (`Options::slave.layout`): seed 004's carriage by default,
+//! as a freshly flashed slave; or a robot file's two encoders, as a slave that was sent that
+//! robot. A robot whose measuring wheels share an axle is driven like a differential drive
+//! (its axle never slides sideways), so its encoders see what real ones would.
 
 use std::cell::RefCell;
 use std::io::{ErrorKind, Read, Write};
@@ -22,14 +27,16 @@ use firmware_master::{ports::MotorDrivers, MasterConfig, MasterShared};
 use firmware_slave::{SlaveConfig, SlaveShared};
 use protocol::serial::{self, FrameDecoder, MasterToHost};
 use rand::{Rng, SeedableRng};
+use robot_math::odometry::Layout;
 use robot_math::omni3::Omni3;
 use robot_math::pursuit::field_to_body;
+use robot_math::se2::wrap_angle;
 use robot_math::{Pose2, Twist};
 use serialport::TTYPort;
 use virtual_time::Simulation;
 
 use super::emulator::hw::*;
-use super::plant::{Plant, PlantConfig};
+use super::plant::{MeasuringSensors, Plant, PlantConfig};
 
 /// Fault knobs of the virtual board (for tests of the host's checks).
 #[derive(Clone, Debug, Default)]
@@ -51,17 +58,39 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
+        Options::for_robot(Layout::SEED_004)
+    }
+}
+
+impl Options {
+    /// A virtual board whose slave holds `layout`, driven at [`course_speed_for`] it.
+    pub fn for_robot(layout: Layout) -> Options {
+        let course_speed = course_speed_for(&layout);
         Options {
             seed: 1,
-            slave: SlaveConfig::DEFAULT,
+            slave: SlaveConfig {
+                layout,
+                ..SlaveConfig::DEFAULT
+            },
             master: MasterConfig::DEFAULT,
             faults: Faults::default(),
             course_side: 1.0,
-            // Slow enough that a 115200-baud link carries every time-stamped edge: about
-            // 3 000 edges/s at 0.05 m/s with seed 004's 32.7 µm counts, 2 bytes each.
-            course_speed: 0.05,
+            course_speed,
         }
     }
+}
+
+/// A course speed at which a 115200-baud link carries every time-stamped edge a recording
+/// sends (2 bytes each): seed 004's 0.05 m/s with its 32.7 µm counts, about 3 000 edges/s,
+/// scaled to the finer of the robot's two encoders (0.01 to 0.5 m/s).
+pub fn course_speed_for(layout: &Layout) -> f64 {
+    let finest = |l: &Layout| {
+        l.metres_per_count()[..2]
+            .iter()
+            .copied()
+            .fold(f64::MAX, f64::min)
+    };
+    (0.05 * finest(layout) / finest(&Layout::SEED_004)).clamp(0.01, 0.5)
 }
 
 /// The master's motor outputs on the virtual board: kept, applied to nothing.
@@ -72,28 +101,77 @@ impl MotorDrivers for Unconnected {
     fn stop(&mut self) {}
 }
 
-/// Drives the plant round a square with seed 003's inverse kinematics, holding heading 0.
+/// How the course steers the body.
+enum Steering {
+    /// Any twist (a carriage follows whatever the body does): slide to each corner, holding
+    /// heading 0.
+    Holonomic,
+    /// Measuring wheels on one axle, rolling along `u` (body frame), its midpoint at `mid`:
+    /// that point only moves along `u`, like a differential drive's. Turn towards each corner,
+    /// then roll to it.
+    Axle { mid: (f64, f64), u: (f64, f64) },
+}
+
+impl Steering {
+    fn for_sensors(sensors: &MeasuringSensors) -> Steering {
+        match *sensors {
+            MeasuringSensors::Carriage { .. } => Steering::Holonomic,
+            MeasuringSensors::Wheels { wheels: [a, b], .. } => Steering::Axle {
+                mid: ((a.x + b.x) / 2.0, (a.y + b.y) / 2.0),
+                u: (a.ux, a.uy),
+            },
+        }
+    }
+}
+
+/// Drives the plant round a square with seed 003's inverse kinematics.
 struct Course {
     corners: [(f64, f64); 4],
     next: usize,
     speed: f64,
+    steering: Steering,
     drive: Omni3,
     speed_at_full_duty: f64,
 }
 
 impl Course {
-    fn duty(&mut self, body: Pose2) -> [i16; 3] {
+    /// The body twist that heads for the next corner.
+    fn twist(&mut self, body: Pose2) -> Twist {
+        // The point that goes round the square: the body origin, or the axle's midpoint.
+        let (px, py) = match self.steering {
+            Steering::Holonomic => (0.0, 0.0),
+            Steering::Axle { mid, .. } => mid,
+        };
+        let (s, c) = body.theta.sin_cos();
+        let (fx, fy) = (body.x + c * px - s * py, body.y + s * px + c * py);
         let (cx, cy) = self.corners[self.next];
-        let (dx, dy) = (cx - body.x, cy - body.y);
+        let (dx, dy) = (cx - fx, cy - fy);
         let dist = dx.hypot(dy);
         if dist < 0.01 {
             self.next = (self.next + 1) % self.corners.len();
         }
-        let v = self.speed.min(dist * 4.0).max(0.05);
-        let (vx, vy) = (v * dx / dist.max(1e-9), v * dy / dist.max(1e-9));
-        let (bx, by) = field_to_body(vx, vy, body.theta);
-        let omega = -2.0 * robot_math::se2::wrap_angle(body.theta);
-        let (w, _) = self.drive.wheel_speeds_saturated(Twist::new(bx, by, omega));
+        let v = self.speed.min(dist * 4.0).max(0.01);
+        match self.steering {
+            Steering::Holonomic => {
+                let (vx, vy) = (v * dx / dist.max(1e-9), v * dy / dist.max(1e-9));
+                let (bx, by) = field_to_body(vx, vy, body.theta);
+                Twist::new(bx, by, -2.0 * wrap_angle(body.theta))
+            }
+            Steering::Axle { mid, u } => {
+                let heading = body.theta + u.1.atan2(u.0);
+                let err = wrap_angle(dy.atan2(dx) - heading);
+                let omega = (3.0 * err).clamp(-1.0, 1.0);
+                // Facing away: turn on the spot first.
+                let v = v * err.cos().max(0.0);
+                // The origin's velocity from the midpoint's: v·u − ω × mid.
+                Twist::new(v * u.0 + omega * mid.1, v * u.1 - omega * mid.0, omega)
+            }
+        }
+    }
+
+    fn duty(&mut self, body: Pose2) -> [i16; 3] {
+        let twist = self.twist(body);
+        let (w, _) = self.drive.wheel_speeds_saturated(twist);
         w.map(|s| {
             ((s / self.speed_at_full_duty) * 1000.0)
                 .round()
@@ -116,11 +194,13 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     let drive = Omni3::new(opts.master.wheel_distance, opts.master.v_max)
         .context("drive geometry: wheel distance and v_max must be positive")?;
+    let sensors = MeasuringSensors::from_layout(&opts.slave.layout)
+        .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
     let plant_cfg = PlantConfig {
         drive,
         speed_at_full_duty: opts.master.speed_at_full_duty,
         motor_tau: 0.05,
-        carriage: robot_math::carriage::CarriageGeometry::SEED_004,
+        sensors,
     };
     let plant: SharedPlant = Rc::new(RefCell::new(Plant::new(
         plant_cfg,
@@ -133,6 +213,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         corners: [(0.0, side), (side, side), (side, 0.0), (0.0, 0.0)],
         next: 0,
         speed: opts.course_speed,
+        steering: Steering::for_sensors(&sensors),
         drive,
         speed_at_full_duty: opts.master.speed_at_full_duty,
     };
@@ -253,4 +334,103 @@ fn with_schema(decoder: &mut FrameDecoder, bytes: &[u8], fp: u32) -> Vec<u8> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robot_math::exact::{FixedPose, MAX_ENCODERS};
+    use robot_math::odometry::{Method, Odometry, SensorKind};
+    use robot_math::wheel::Wheel;
+
+    /// Two body-fixed measuring wheels on an axle 3 cm ahead of the reference point and off
+    /// its centre line, 1 µm counts (so quantisation does not hide a sliding axle).
+    fn axle_layout() -> Layout {
+        Layout::from_geometry(
+            &[
+                (Wheel::at(0.03, 0.12, 0.0), 1e-6),
+                (Wheel::at(0.03, -0.17, 0.0), 1e-6),
+            ],
+            None,
+            None,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn an_axle_robot_is_driven_round_the_square_without_sliding_sideways() {
+        let layout = axle_layout();
+        let sensors = MeasuringSensors::from_layout(&layout).unwrap();
+        let master = MasterConfig::DEFAULT;
+        let drive = Omni3::new(master.wheel_distance, master.v_max).unwrap();
+        let cfg = PlantConfig {
+            drive,
+            speed_at_full_duty: master.speed_at_full_duty,
+            motor_tau: 0.05,
+            sensors,
+        };
+        let mut plant = Plant::new(cfg, Pose2::default(), 0.0, [0.3, 0.8]);
+        let mut course = Course {
+            corners: [(0.0, 0.5), (0.5, 0.5), (0.5, 0.0), (0.0, 0.0)],
+            next: 0,
+            speed: 0.3,
+            steering: Steering::for_sensors(&sensors),
+            drive,
+            speed_at_full_duty: master.speed_at_full_duty,
+        };
+        let mut odo = Odometry::new(
+            &layout,
+            Method::Exact,
+            SensorKind::Counts,
+            FixedPose::default(),
+            0,
+            [0; MAX_ENCODERS],
+            None,
+        )
+        .unwrap();
+        let mut corners_passed = 0;
+        for ms in 1..=12_000u64 {
+            if ms % 10 == 0 {
+                let before = course.next;
+                let d = course.duty(plant.body());
+                plant.set_duty(d);
+                corners_passed += usize::from(course.next != before);
+            }
+            plant.advance(1e-3, 1e-4);
+            let c = plant.encoder_counts();
+            odo.set_counts([c[0], c[1], 0, 0]);
+            odo.update(ms * 1_000_000);
+        }
+        // Round the square at least once, turning at each corner.
+        assert!(corners_passed >= 4, "{corners_passed} corners");
+        assert!(plant.path_length() > 2.0, "{}", plant.path_length());
+        // Two wheels on an axle see only motion without sideways sliding: had the course slid
+        // the axle, odometry would be off by centimetres.
+        let (est, truth) = (odo.pose().to_pose2(), plant.body());
+        assert!(est.distance_to(truth) < 1e-4, "{est:?} vs {truth:?}");
+        assert!(wrap_angle(est.theta - truth.theta).abs() < 1e-4);
+    }
+
+    #[test]
+    fn robots_the_slave_board_cannot_read_are_refused_with_the_reason() {
+        let three = Layout::from_geometry(
+            &[
+                (Wheel::at(0.1, 0.0, 1.6), 1e-4),
+                (Wheel::at(-0.05, 0.09, 3.7), 1e-4),
+                (Wheel::at(-0.05, -0.09, 5.8), 1e-4),
+            ],
+            None,
+            None,
+        )
+        .unwrap();
+        let e = MeasuringSensors::from_layout(&three).unwrap_err();
+        assert!(
+            e.contains("2 quadrature encoders") && e.contains("has 3"),
+            "{e}"
+        );
+        assert!(MeasuringSensors::from_layout(&Layout::SEED_004).is_ok());
+        // Seed 004 at its own course speed; coarser counts drive faster.
+        assert!((course_speed_for(&Layout::SEED_004) - 0.05).abs() < 1e-12);
+        assert!(course_speed_for(&axle_layout()) == 0.01);
+    }
 }

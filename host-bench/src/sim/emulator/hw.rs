@@ -19,7 +19,6 @@ use firmware_slave::ports::{
     SpiSlaveError,
 };
 use protocol::spi::SPI_FRAME_LEN;
-use robot_math::sensors::binary_to_gray;
 use robot_math::sensors::QuadratureDecoder;
 
 use crate::sim::plant::Plant;
@@ -74,7 +73,7 @@ pub struct EmuAbsEncoder(pub SharedPlant);
 
 impl AbsoluteEncoderPins for EmuAbsEncoder {
     fn read_levels(&mut self) -> u8 {
-        !(binary_to_gray(self.0.borrow().abs_code()) as u8)
+        self.0.borrow().abs_pins()
     }
 }
 

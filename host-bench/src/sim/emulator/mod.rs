@@ -23,14 +23,13 @@ use embassy_time::{Duration, Instant};
 use firmware_master::{MasterConfig, MasterShared};
 use firmware_slave::{SlaveConfig, SlaveShared};
 use rand::{Rng, SeedableRng};
-use robot_math::carriage::CarriageGeometry;
 use robot_math::omni3::Omni3;
 use robot_math::se2::wrap_angle;
 use robot_math::Pose2;
 use serde::Serialize;
 use virtual_time::Simulation;
 
-use crate::sim::plant::{Plant, PlantConfig};
+use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
 use hw::*;
 
 /// A run to emulate: where the robot starts and what the host asks of it.
@@ -200,15 +199,14 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     }
     let wall = WallInstant::now();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
-    let carriage: CarriageGeometry = opts.slave.layout.carriage_geometry().context(
-        "the emulated robot is seed 004's: the slave's layout must have a swivel carriage",
-    )?;
+    let sensors = MeasuringSensors::from_layout(&opts.slave.layout)
+        .map_err(|e| anyhow::anyhow!("the slave's robot cannot be emulated: {e}"))?;
     let plant_cfg = PlantConfig {
         drive: Omni3::new(opts.master.wheel_distance, opts.master.v_max)
             .context("drive geometry: wheel distance and v_max must be positive")?,
         speed_at_full_duty: opts.master.speed_at_full_duty,
         motor_tau: opts.motor_tau,
-        carriage,
+        sensors,
     };
     let (x, y, th) = scenario.start;
     let plant: SharedPlant = Rc::new(RefCell::new(Plant::new(
