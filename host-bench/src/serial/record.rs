@@ -285,6 +285,14 @@ fn write(
             c.board.len()
         );
     }
+    // The truth comes straight from the simulation, the sensors through the slave's report
+    // stream, tens of milliseconds behind: truth past the slave's last pose may have no
+    // ticks yet. The slave flushes its sensor records before each pose, so up to that pose
+    // every tick is in; later truth rows go.
+    if let Some(&(covered, _)) = c.board.last() {
+        c.rows
+            .retain(|r| !matches!(*r, Row::Truth { t_ns, .. } if t_ns > covered));
+    }
     // One clock for everything (the slave's), starting at the first row.
     c.rows.sort_by_key(|r| r.t_ns());
     // With truth, the stream starts at the first truth row (replay starts from its pose):
@@ -346,6 +354,11 @@ fn write(
             c.lost_events, c.lost_updates
         ));
     }
+    // What is written (rows before the first truth row, or past the last pose, are not).
+    let written = |f: fn(&Row) -> bool| c.rows.iter().filter(|r| f(r)).count() as u64;
+    let ticks = written(|r| matches!(r, Row::Tick { .. }));
+    let abs_readings = written(|r| matches!(r, Row::Abs { .. }));
+    let truth_rows = written(|r| matches!(r, Row::Truth { .. }));
     let stream = TickStream {
         robot: Some(robot_file.clone()),
         comments,
@@ -380,9 +393,9 @@ fn write(
         board_poses_file: PathBuf::from(&board_file).display().to_string(),
         sensor: if req.counts { "counts" } else { "timestamps" }.into(),
         seconds,
-        ticks: c.ticks,
-        abs_readings: c.abs,
-        truth_rows: c.truth,
+        ticks,
+        abs_readings,
+        truth_rows,
         board_poses: c.board.len() as u64,
         lost_events: c.lost_events,
         lost_updates: c.lost_updates,
