@@ -17,7 +17,6 @@ use protocol::events::{Event, EventDecoder};
 use protocol::link::GbnReceiver;
 use protocol::serial::{HostToMaster, MasterToHost};
 use protocol::spi::{Report, Reports, SensorSource};
-use robot_math::odometry::Method;
 use serde::Serialize;
 
 use super::link::Link;
@@ -66,12 +65,14 @@ struct Collected {
     lost_events: u64,
     lost_updates: u64,
     truth: u64,
+    /// Whether the robot has an absolute encoder (else the slave's pins read nothing).
+    has_abs: bool,
 }
 
 pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
     let info = session::hello(link)?;
     // The robot: the one given (loaded into the slave), or the slave's power-on seed 004.
-    let (robot_text, robot_name) = match req.robot {
+    let (robot_text, robot_name, has_abs) = match req.robot {
         Some(p) => {
             let robot = crate::formats::robot::Robot::load(p)?;
             let layout = robot.odometry_layout()?;
@@ -79,6 +80,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             (
                 std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
                 robot.name,
+                layout.abs().is_some(),
             )
         }
         None => {
@@ -92,11 +94,10 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
                     info.robot
                 );
             }
-            (SEED_004_TOML.to_string(), "seed004".to_string())
+            (SEED_004_TOML.to_string(), "seed004".to_string(), true)
         }
     };
-    let method =
-        Method::from_name(&format!("{:?}", info.algorithm).to_lowercase()).unwrap_or(Method::Exact);
+    let method = session::method_of(info.algorithm);
     let source = if req.counts {
         SensorSource::Counts
     } else {
@@ -140,6 +141,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         lost_events: 0,
         lost_updates: 0,
         truth: 0,
+        has_abs,
     };
     let mut edges = EventDecoder::new();
     let period_us = info.period_us.max(1) as u64;
@@ -244,6 +246,7 @@ fn take_report(r: Report, c: &mut Collected, edges: &mut EventDecoder) -> Result
                         step: step.delta(),
                     });
                 }
+                Ok(Event::Abs { .. }) if !c.has_abs => {}
                 Ok(Event::Abs { t_us, code }) => {
                     c.abs += 1;
                     c.rows.push(Row::Abs {

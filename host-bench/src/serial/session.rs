@@ -135,6 +135,16 @@ pub fn wire_algorithm(m: Method) -> OdometryAlgorithm {
     }
 }
 
+/// The method a board reports running ([`wire_algorithm`] the other way).
+pub fn method_of(a: OdometryAlgorithm) -> Method {
+    match a {
+        OdometryAlgorithm::Exact => Method::Exact,
+        OdometryAlgorithm::Arc => Method::Arc,
+        OdometryAlgorithm::Lut => Method::Lut,
+        OdometryAlgorithm::Timing => Method::Timing,
+    }
+}
+
 /// Switch the slave's odometry method and its sensor source (which restarts odometry at the
 /// origin and both streams at zero), confirmed by the board.
 pub fn set_method_and_source(
