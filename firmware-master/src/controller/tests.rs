@@ -1,0 +1,356 @@
+//! The controller's tests: the state machine driven by hand-made frames and clock values.
+
+use super::*;
+use protocol::{BinaryAngle, Point};
+
+fn t(ms: u64) -> Instant {
+    Instant::from_millis(ms)
+}
+
+fn slave_frame(seq: u16, ack: u8, x_um: i32) -> SlaveFrame {
+    SlaveFrame {
+        seq,
+        command_ack: ack,
+        pose: Pose {
+            x_um,
+            y_um: 0,
+            heading: BinaryAngle(0),
+        },
+        status: protocol::spi::slave_status::RUNNING,
+        ..Default::default()
+    }
+}
+
+fn follow(speed_um_s: u32) -> HostToMaster {
+    HostToMaster::FollowTarget(MovingTarget {
+        from: Point {
+            x_um: 1_000_000,
+            y_um: 0,
+        },
+        to: Point {
+            x_um: 1_000_000,
+            y_um: 0,
+        },
+        target_speed_um_s: 0,
+        robot_speed_um_s: speed_um_s,
+        heading: BinaryAngle(0),
+    })
+}
+
+fn ctl() -> Controller {
+    Controller::new(MasterConfig::DEFAULT).unwrap()
+}
+
+#[test]
+fn drives_towards_the_target_and_stops_when_the_slave_goes_quiet() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    c.on_slave_frame(t(1), Ok(slave_frame(1, 0, 0)));
+    let Drive::Duty(d) = c.control(t(2)) else {
+        panic!("should drive")
+    };
+    // Straight ahead along +x: wheel 1 (rolling along +y) idle, wheels 2 and 3 opposite.
+    assert_eq!(d[0], 0);
+    assert!(d[1] < 0 && d[2] > 0, "{d:?}");
+    // No fresh frame for longer than the timeout: motors stop and the goal is dropped.
+    c.on_host_message(t(60), HostToMaster::Heartbeat);
+    assert_eq!(c.control(t(2 + 51)), Drive::Stop);
+    assert_ne!(c.status() & status::SLAVE_LOST, 0);
+    assert_eq!(c.status() & status::FOLLOWING, 0);
+}
+
+#[test]
+fn a_stuck_slave_counts_as_lost() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    for ms in 1..100 {
+        // Valid CRC, but the same seq: odometry is not running.
+        c.on_slave_frame(t(ms), Ok(slave_frame(7, 0, 0)));
+        c.on_host_message(t(ms), HostToMaster::Heartbeat);
+    }
+    assert_eq!(c.control(t(100)), Drive::Stop);
+}
+
+#[test]
+fn host_silence_stops_the_motors() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    for ms in 1..=600 {
+        c.on_slave_frame(t(ms), Ok(slave_frame(ms as u16, 0, 0)));
+    }
+    assert!(matches!(c.control(t(400)), Drive::Duty(_)));
+    assert_eq!(c.control(t(600)), Drive::Stop);
+    assert_ne!(c.status() & status::HOST_LOST, 0);
+}
+
+#[test]
+fn invalid_target_is_rejected_and_stops() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    let reply = c.on_host_message(t(1), follow(5_000_000));
+    assert_eq!(
+        reply,
+        Some(MasterToHost::Rejected(RejectReason::InvalidTarget))
+    );
+    c.on_slave_frame(t(2), Ok(slave_frame(1, 0, 0)));
+    assert_eq!(c.control(t(3)), Drive::Stop);
+    assert_ne!(c.status() & status::COMMAND_REJECTED, 0);
+}
+
+#[test]
+fn wrong_protocol_version_is_refused() {
+    let mut c = ctl();
+    let reply = c.on_host_message(
+        t(0),
+        HostToMaster::Hello {
+            protocol_version: 99,
+        },
+    );
+    assert_eq!(
+        reply,
+        Some(MasterToHost::Rejected(RejectReason::ProtocolVersion {
+            master: PROTOCOL_VERSION,
+            host: 99
+        }))
+    );
+    let ok = c.on_host_message(
+        t(0),
+        HostToMaster::Hello {
+            protocol_version: PROTOCOL_VERSION,
+        },
+    );
+    let Some(MasterToHost::HelloReply(info)) = ok else {
+        panic!("hello must be answered with the board info, got {ok:?}")
+    };
+    assert_eq!(info.protocol_version, PROTOCOL_VERSION);
+    assert_eq!(info.schema_fingerprint, protocol::schema_fingerprint());
+    assert!(!info.slave_seen, "no slave frame yet");
+}
+
+#[test]
+fn set_pose_is_repeated_until_acknowledged_and_old_poses_are_ignored() {
+    let mut c = ctl();
+    let p = Pose {
+        x_um: 5,
+        y_um: 6,
+        heading: BinaryAngle(7),
+    };
+    c.on_host_message(t(0), HostToMaster::SetPose(p));
+    for _ in 0..3 {
+        let f = c.next_slave_frame();
+        assert_eq!((f.command_seq, f.command), (1, SlaveCommand::SetPose(p)));
+        // Slave has not applied it yet: its pose is from before and must not be used.
+        c.on_slave_frame(t(1), Ok(slave_frame(1, 0, 999)));
+        assert!(c.estimate(t(1)).is_none());
+    }
+    c.on_slave_frame(t(2), Ok(slave_frame(2, 1, 5)));
+    assert_eq!(c.next_slave_frame().command, SlaveCommand::None);
+    assert!((c.estimate(t(2)).unwrap().x - 5e-6).abs() < 1e-12);
+}
+
+#[test]
+fn frame_age_comes_from_the_slave_clock() {
+    let mut c = ctl();
+    // The slave's clock runs 1 s behind the master's. Polls end at 2.000 s and 2.002 s
+    // (master clock); the slave armed its frame right after the first, holding a pose it
+    // sampled 700 µs before that.
+    c.on_slave_frame(t(2_000), Err(SpiFrameError::Crc));
+    let mut f = slave_frame(1, 0, 0);
+    f.armed_us = 1_000_000;
+    f.time_us = 1_000_000 - 700;
+    c.on_slave_frame(t(2_002), Ok(f));
+    assert_eq!(c.slave.unwrap().1.as_micros(), 2_000_000 - 700);
+    // A slave reboot (its clock back near zero) must not produce an absurd age.
+    let mut f = slave_frame(2, 0, 0);
+    f.time_us = 5;
+    f.armed_us = 3;
+    c.on_slave_frame(t(2_004), Ok(f));
+    assert_eq!(c.slave.unwrap().1.as_micros(), 2_004_000);
+}
+
+#[test]
+fn queued_commands_go_out_one_by_one_each_until_acknowledged() {
+    use protocol::spi::OdometryAlgorithm;
+    let mut c = ctl();
+    let p = Pose {
+        x_um: 1,
+        y_um: 2,
+        heading: BinaryAngle(3),
+    };
+    c.on_host_message(t(0), HostToMaster::SetPose(p));
+    c.on_host_message(t(0), HostToMaster::SetOdometry(OdometryAlgorithm::Arc));
+    let f = c.next_slave_frame();
+    assert_eq!((f.command_seq, f.command), (1, SlaveCommand::SetPose(p)));
+    // Not acknowledged yet: the same command again.
+    c.on_slave_frame(t(1), Ok(slave_frame(1, 0, 0)));
+    assert_eq!(c.next_slave_frame().command, SlaveCommand::SetPose(p));
+    // Acked: the next one, under the next number.
+    c.on_slave_frame(t(2), Ok(slave_frame(2, 1, 0)));
+    let f = c.next_slave_frame();
+    assert_eq!(
+        (f.command_seq, f.command),
+        (2, SlaveCommand::SetAlgorithm(OdometryAlgorithm::Arc))
+    );
+    assert!(
+        c.estimate(t(2)).is_none(),
+        "poses wait until every command is applied"
+    );
+    c.on_slave_frame(t(3), Ok(slave_frame(3, 2, 0)));
+    let f = c.next_slave_frame();
+    assert_eq!((f.command_seq, f.command), (2, SlaveCommand::None));
+    assert!(c.estimate(t(3)).is_some());
+    // A flood beyond the queue is refused and stops the robot.
+    for _ in 0..COMMAND_QUEUE {
+        assert_eq!(c.on_host_message(t(4), HostToMaster::SetPose(p)), None);
+    }
+    assert_eq!(
+        c.on_host_message(t(4), HostToMaster::SetPose(p)),
+        Some(MasterToHost::Rejected(RejectReason::Busy))
+    );
+}
+
+fn events(seq: u16, bytes: &[u8]) -> HostToMaster {
+    HostToMaster::Events(protocol::link::DataFrame {
+        seq,
+        bytes: heapless::Vec::from_slice(bytes).unwrap(),
+    })
+}
+
+/// The master's ack of the host's event stream, which it sends next.
+fn events_ack(c: &mut Controller, now: Instant) -> protocol::link::Ack {
+    match c.poll_host_stream(now) {
+        Some(MasterToHost::EventsAck(a)) => a,
+        other => panic!("expected an events ack, got {other:?}"),
+    }
+}
+
+#[test]
+fn info_answers_without_restarting_the_streams_and_hello_restarts_them() {
+    let mut c = ctl();
+    let hello = HostToMaster::Hello {
+        protocol_version: PROTOCOL_VERSION,
+    };
+    assert!(c.on_host_message(t(0), hello.clone()).is_some());
+    c.on_slave_frame(
+        t(0),
+        Ok(SlaveFrame {
+            robot: 0xabcd,
+            period_us: 2_000,
+            ..slave_frame(1, 0, 0)
+        }),
+    );
+    c.on_host_message(t(1), events(0, &[1, 2, 3, 4]));
+    assert_eq!(events_ack(&mut c, t(1)).next, 4);
+
+    let reply = c.on_host_message(t(2), HostToMaster::Info);
+    let Some(MasterToHost::HelloReply(info)) = reply else {
+        panic!("info must be answered with the board info, got {reply:?}")
+    };
+    assert!(info.slave_seen);
+    assert_eq!((info.robot, info.period_us), (0xabcd, 2_000));
+    // The event stream goes on where it was.
+    c.on_host_message(t(3), events(4, &[5, 6]));
+    let ack = events_ack(&mut c, t(3));
+    assert_eq!((ack.next, ack.gap), (6, false));
+
+    // A hello starts a new session: the same continuation is now beyond the stream's start.
+    assert!(c.on_host_message(t(4), hello).is_some());
+    c.on_host_message(t(5), events(6, &[7]));
+    let ack = events_ack(&mut c, t(5));
+    assert_eq!((ack.next, ack.gap), (0, true));
+}
+
+#[test]
+fn slave_commands_are_forwarded_in_order_each_until_acknowledged() {
+    use protocol::robot::{ExactPart, RobotHeader, WheelPart};
+    use protocol::spi::{Reports, SensorSource};
+    let mut c = ctl();
+    let sent = [
+        SlaveCommand::RobotWheel(WheelPart {
+            index: 0,
+            metres_per_count: 1e-4,
+            ..Default::default()
+        }),
+        SlaveCommand::RobotExact(ExactPart {
+            index: 0,
+            kx: 5,
+            ky: 6,
+            kth: 7,
+        }),
+        SlaveCommand::RobotCommit(RobotHeader {
+            encoders: 1,
+            fingerprint: 42,
+            ..Default::default()
+        }),
+        SlaveCommand::SetSource {
+            source: SensorSource::PlayedTicks,
+            reports: Reports::Poses,
+            start: Pose::default(),
+        },
+    ];
+    for cmd in sent {
+        assert_eq!(c.on_host_message(t(0), HostToMaster::Slave(cmd)), None);
+    }
+    let mut ack = 0;
+    for (i, cmd) in sent.iter().enumerate() {
+        let f = c.next_slave_frame();
+        assert_eq!(
+            (f.command_seq, &f.command),
+            (i as u8 + 1, cmd),
+            "command {i}"
+        );
+        // Not acknowledged: repeated, same number.
+        c.on_slave_frame(t(1), Ok(slave_frame(2 * i as u16, ack, 0)));
+        let again = c.next_slave_frame();
+        assert_eq!((again.command_seq, &again.command), (f.command_seq, cmd));
+        ack = f.command_seq;
+        c.on_slave_frame(t(1), Ok(slave_frame(2 * i as u16 + 1, ack, 0)));
+    }
+    assert_eq!(c.next_slave_frame().command, SlaveCommand::None);
+}
+
+#[test]
+fn played_events_wait_for_the_pending_commands() {
+    use protocol::spi::{Reports, SensorSource};
+    let mut c = ctl();
+    let source = SlaveCommand::SetSource {
+        source: SensorSource::PlayedTicks,
+        reports: Reports::Poses,
+        start: Pose::default(),
+    };
+    c.on_host_message(t(0), HostToMaster::Slave(source));
+    c.on_host_message(t(0), events(0, &[1, 2, 3]));
+    // The slave has not switched to played sensors yet: the events are held.
+    for seq in 1..4 {
+        let f = c.next_slave_frame();
+        assert_eq!(f.command, source);
+        assert!(f.events.bytes.is_empty(), "frame {seq} carried events");
+        c.on_slave_frame(t(1), Ok(slave_frame(seq, 0, 0)));
+    }
+    // Applied: the events go out from the start of the slave's new stream.
+    c.on_slave_frame(t(2), Ok(slave_frame(4, 1, 0)));
+    let f = c.next_slave_frame();
+    assert_eq!(f.command, SlaveCommand::None);
+    assert_eq!(
+        (f.events.offset, f.events.bytes.as_slice()),
+        (0, &[1, 2, 3][..])
+    );
+}
+
+#[test]
+fn crc_failures_are_counted_not_used() {
+    let mut c = ctl();
+    c.on_slave_frame(t(1), Err(SpiFrameError::Crc));
+    c.on_host_frame_error();
+    assert_eq!(c.counters().spi_rejected, 1);
+    assert_eq!(c.counters().serial_rejected, 1);
+    assert!(c.estimate(t(1)).is_none());
+}
+
+#[test]
+fn default_config_is_valid() {
+    assert!(Controller::new(MasterConfig::DEFAULT).is_some());
+    let mut bad = MasterConfig::DEFAULT;
+    bad.wheel_distance = 0.0;
+    assert!(Controller::new(bad).is_none());
+}
