@@ -342,15 +342,7 @@ fn a_recording_replays_against_its_truth() {
     .unwrap();
     assert_eq!((o.lost_events, o.lost_updates), (0, 0), "{o:?}");
     assert!(o.ticks > 1000 && o.truth_rows > 100, "{o:?}");
-    let stream = tickstream::read(&out).unwrap();
-    let robot = Robot::load(&stream.robot_path(&out).unwrap()).unwrap();
-    let score = host_bench::eval::replay::replay(
-        &robot,
-        &stream,
-        "exact",
-        host_bench::eval::replay::Mode::Timestamps,
-    )
-    .unwrap();
+    let (stream, score) = replay_exact(&out);
     // Seed 004's 8-bit swivel encoder knows the start heading to half a code (0.7 deg): over
     // the 0.1 m recorded that is a few millimetres at most.
     assert!(score.final_error_m < 5e-3, "{}", score.final_error_m);
@@ -420,17 +412,9 @@ fn a_virtual_board_of_our_own_robot_records_what_replay_and_the_board_agree_on()
         )
         .unwrap();
         assert_eq!((o.lost_events, o.lost_updates), (0, 0), "{o:?}");
-        let stream = tickstream::read(&out).unwrap();
-        let robot = Robot::load(&stream.robot_path(&out).unwrap()).unwrap();
+        let (stream, score) = replay_exact(&out);
         // No absolute encoder on this robot: nothing is read from the slave's pins.
         assert!(!stream.events.iter().any(|e| matches!(e, Event::Abs { .. })));
-        let score = host_bench::eval::replay::replay(
-            &robot,
-            &stream,
-            "exact",
-            host_bench::eval::replay::Mode::Timestamps,
-        )
-        .unwrap();
         // Half a metre at 0.2 mm counts: within two counts of the truth with time stamps; with
         // counts sampled at 1 kHz a count's heading step (0.2 mm / 0.27 m) turns the track
         // too, so within five.
@@ -459,4 +443,18 @@ fn request<'a>(out: &'a Path, robot: Option<&'a Path>, counts: bool) -> record::
         robot,
         progress: None,
     }
+}
+
+/// A recording and `exact` replayed over it, against its own robot file.
+fn replay_exact(out: &Path) -> (TickStream, host_bench::eval::replay::Score) {
+    let stream = tickstream::read(out).unwrap();
+    let robot = Robot::load(&stream.robot_path(out).unwrap()).unwrap();
+    let score = host_bench::eval::replay::replay(
+        &robot,
+        &stream,
+        "exact",
+        host_bench::eval::replay::Mode::Timestamps,
+    )
+    .unwrap();
+    (stream, score)
 }
