@@ -134,46 +134,7 @@ enum Command {
     },
     /// Flash the boards' release images through their debug probes, both in parallel, then
     /// verify, reset and run. Builds nothing (docs/bench.md).
-    Flash {
-        /// Flash the slave (default: both boards).
-        #[arg(long)]
-        slave: bool,
-        /// Flash the master (default: both boards).
-        #[arg(long)]
-        master: bool,
-        /// Bench description [default: ./bench.toml if present].
-        #[arg(long, value_name = "FILE")]
-        bench: Option<PathBuf>,
-        /// The slave's probe: VID:PID[:SERIAL] (hex ids) or a serial number.
-        #[arg(long, value_name = "SEL")]
-        slave_probe: Option<host_bench::boards::selection::ProbeSpec>,
-        /// The master's probe: VID:PID[:SERIAL] (hex ids) or a serial number.
-        #[arg(long, value_name = "SEL")]
-        master_probe: Option<host_bench::boards::selection::ProbeSpec>,
-        /// The slave's image [default: <target>/thumbv7m-none-eabi/release/firmware-slave].
-        #[arg(long, value_name = "ELF")]
-        slave_elf: Option<PathBuf>,
-        /// The master's image [default: <target>/thumbv7m-none-eabi/release/firmware-master].
-        #[arg(long, value_name = "ELF")]
-        master_elf: Option<PathBuf>,
-        /// probe-rs chip name [default: bench.toml's, else STM32F103C8].
-        #[arg(long, value_name = "NAME")]
-        chip: Option<String>,
-        /// Skip reading the flash back after programming.
-        #[arg(long)]
-        no_verify: bool,
-        /// Attach and plan the download, write nothing, leave the boards running.
-        #[arg(long, conflicts_with = "rtt")]
-        dry_run: bool,
-        /// Afterwards print both boards' defmt logs over RTT, prefixed [slave] / [master],
-        /// until Ctrl-C.
-        #[arg(long, conflicts_with = "json")]
-        rtt: bool,
-        /// Print {"boards":[{board, ok, chip, bytes, seconds, verified, dry_run, identity} or
-        /// {board, ok:false, error}]}.
-        #[arg(long)]
-        json: bool,
-    },
+    Flash(cli::flash::FlashArgs),
     /// Play a tick stream into the slave over the serial link and check, update by update,
     /// that it computes the same poses as the host (docs/bench.md).
     Play(cli::serial::PlayArgs),
@@ -275,33 +236,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => cli::analyse::run_replay(robot, ticks, algorithm, counts_rate, out, json),
         Command::Probes { json } => cli::flash::run_probes(json),
         Command::InitBench { out, force } => cli::flash::run_init_bench(out, force),
-        Command::Flash {
-            slave,
-            master,
-            bench,
-            slave_probe,
-            master_probe,
-            slave_elf,
-            master_elf,
-            chip,
-            no_verify,
-            dry_run,
-            rtt,
-            json,
-        } => cli::flash::run_flash(cli::flash::FlashArgs {
-            slave,
-            master,
-            bench,
-            slave_probe,
-            master_probe,
-            slave_elf,
-            master_elf,
-            chip,
-            no_verify,
-            dry_run,
-            rtt,
-            json,
-        }),
+        Command::Flash(a) => cli::flash::run_flash(a),
         Command::Play(a) => cli::serial::run_play(a),
         Command::Record(a) => cli::serial::run_record(a),
         Command::VirtualBoard(a) => cli::serial::run_virtual_board(a),

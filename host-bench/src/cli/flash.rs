@@ -87,19 +87,46 @@ fn guesses_text(inventory: &Inventory, draft: &BenchDraft) -> String {
     out
 }
 
-/// The `flash` subcommand's arguments (defined in main.rs).
+/// The `flash` subcommand's arguments.
+#[derive(clap::Args, Debug)]
 pub struct FlashArgs {
+    /// Flash the slave (default: both boards).
+    #[arg(long)]
     pub slave: bool,
+    /// Flash the master (default: both boards).
+    #[arg(long)]
     pub master: bool,
+    /// Bench description [default: ./bench.toml if present].
+    #[arg(long, value_name = "FILE")]
     pub bench: Option<PathBuf>,
+    /// The slave's probe: VID:PID[:SERIAL] (hex ids) or a serial number.
+    #[arg(long, value_name = "SEL")]
     pub slave_probe: Option<ProbeSpec>,
+    /// The master's probe: VID:PID[:SERIAL] (hex ids) or a serial number.
+    #[arg(long, value_name = "SEL")]
     pub master_probe: Option<ProbeSpec>,
+    /// The slave's image [default: <target>/thumbv7m-none-eabi/release/firmware-slave].
+    #[arg(long, value_name = "ELF")]
     pub slave_elf: Option<PathBuf>,
+    /// The master's image [default: <target>/thumbv7m-none-eabi/release/firmware-master].
+    #[arg(long, value_name = "ELF")]
     pub master_elf: Option<PathBuf>,
+    /// probe-rs chip name [default: bench.toml's, else STM32F103C8].
+    #[arg(long, value_name = "NAME")]
     pub chip: Option<String>,
+    /// Skip reading the flash back after programming.
+    #[arg(long)]
     pub no_verify: bool,
+    /// Attach and plan the download, write nothing, leave the boards running.
+    #[arg(long, conflicts_with = "rtt")]
     pub dry_run: bool,
+    /// Afterwards print both boards' defmt logs over RTT, prefixed [slave] / [master],
+    /// until Ctrl-C.
+    #[arg(long, conflicts_with = "json")]
     pub rtt: bool,
+    /// Print {"boards":[{board, ok, chip, bytes, seconds, verified, dry_run, identity} or
+    /// {board, ok:false, error}]}.
+    #[arg(long)]
     pub json: bool,
 }
 
