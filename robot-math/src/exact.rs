@@ -261,7 +261,13 @@ impl ExactOdometry {
 
     /// Whole-count convenience for fixed-rate sampling.
     pub fn update_counts(&mut self, counts: &[i64; MAX_ENCODERS]) -> FixedPose {
-        self.update_q16(&counts.map(|c| c.wrapping_shl(16)))
+        // A loop, not `map`: an out-of-line `array::map` shares its name with float callers'
+        // and blurs the no-float check's call graph.
+        let mut q16 = [0i64; MAX_ENCODERS];
+        for (q, &c) in q16.iter_mut().zip(counts) {
+            *q = c.wrapping_shl(16);
+        }
+        self.update_q16(&q16)
     }
 
     /// Move to the encoders' new cumulative positions (Q16 counts). Integer-only.

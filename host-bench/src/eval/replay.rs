@@ -282,7 +282,8 @@ fn drive(
     abs_index: Option<usize>,
     est: &mut dyn Estimator,
 ) -> Result<Scorer> {
-    let mut wheels = [TickTracker::new(); MAX_ENCODERS];
+    let t0 = stream.events.first().map_or(0, |e| e.t_ns());
+    let mut wheels = [TickTracker::starting(0, t0); MAX_ENCODERS];
     let period_ns = match mode {
         Mode::Counts { rate_hz } => Some(((1e9 / rate_hz).round() as u64).max(1)),
         Mode::Timestamps => None,
@@ -315,6 +316,7 @@ fn drive(
                     );
                 }
                 wheels[e].tick(t, step);
+                robot_math::ticks::place_together(&mut wheels[..n]);
                 est.tick(t, e, step);
                 ticked = true;
             }

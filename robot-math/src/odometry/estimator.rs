@@ -5,7 +5,7 @@ use crate::arc::ArcOdometry;
 use crate::carriage::CarriageExact;
 use crate::exact::{ExactOdometry, FixedPose, MAX_ENCODERS};
 use crate::lut::LutOdometry;
-use crate::ticks::{counts_as_ticks, TickTracker};
+use crate::ticks::{counts_as_ticks, place_together, TickTracker};
 use crate::timing::TimingOdometry;
 use crate::wheelset::GeometryError;
 use crate::Pose2;
@@ -116,7 +116,7 @@ impl Odometry {
             layout: layout.clone(),
             method,
             sensors,
-            trackers: counts.map(TickTracker::at),
+            trackers: counts.map(|c| TickTracker::starting(c, t_ns)),
             counts,
             abs,
             pose: start,
@@ -290,14 +290,18 @@ impl Odometry {
         {
             return false;
         }
-        match (self.trackers.get_mut(encoder), self.counts.get_mut(encoder)) {
+        let placed = match (self.trackers.get_mut(encoder), self.counts.get_mut(encoder)) {
             (Some(t), Some(c)) => {
                 t.tick(t_ns, step);
                 *c = t.count();
                 true
             }
             _ => false,
+        };
+        if let Some(wheels) = self.trackers.get_mut(..self.layout.encoders()) {
+            place_together(wheels);
         }
+        placed
     }
 
     /// The encoders' cumulative whole counts ([`SensorKind::Counts`]; ignored with ticks).

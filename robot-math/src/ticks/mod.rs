@@ -23,6 +23,8 @@
 //!
 //! Integer-only: times in nanoseconds, positions in Q16 counts.
 
+pub mod start;
+
 /// One wheel's tick history.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TickTracker {
@@ -36,25 +38,40 @@ pub struct TickTracker {
     /// The interval before that, when it went the same way too.
     prev_interval: Option<u64>,
     dir: i8,
+    /// Power-on (or when the estimator started watching the wheel).
+    start_ns: u64,
+    /// The first ticks after power-on while they all go one way (up to four), for the fit
+    /// of where inside its count the wheel stood ([`start`]).
+    first: [u64; 4],
+    first_len: u8,
+    first_dir: i8,
+    /// That position, Q16 counts above the count at power-on (φ ∈ [0, 1]); half a count
+    /// until a fit places it.
+    phase_q16: i64,
+    /// A fit of the wheel's own first ticks placed it.
+    placed: bool,
 }
 
 /// The interpolated fraction never reaches a whole step: 1 - 2^-16.
 const MAX_FRACTION: i64 = 0xFFFF;
+/// Where a wheel is taken to stand inside its count before its ticks say: the middle, so the
+/// error is at most half a count either way.
+const UNKNOWN_PHASE_Q16: i64 = 1 << 15;
 
 impl TickTracker {
     pub const fn new() -> Self {
-        TickTracker {
-            count: 0,
-            edge: 0,
-            last_t: None,
-            interval: None,
-            prev_interval: None,
-            dir: 0,
-        }
+        Self::starting(0, 0)
     }
 
-    /// A wheel that has not ticked yet, standing at `count` (on that count's edge).
+    /// A wheel that has not ticked yet, standing at `count`, powered on (or first seen) at
+    /// time 0.
     pub const fn at(count: i64) -> Self {
+        Self::starting(count, 0)
+    }
+
+    /// A wheel that has not ticked yet, standing somewhere inside `count` at `t_ns` (its
+    /// power-on, or when the estimator started watching it).
+    pub const fn starting(count: i64, t_ns: u64) -> Self {
         TickTracker {
             count,
             edge: count,
@@ -62,6 +79,12 @@ impl TickTracker {
             interval: None,
             prev_interval: None,
             dir: 0,
+            start_ns: t_ns,
+            first: [0; 4],
+            first_len: 0,
+            first_dir: 0,
+            phase_q16: UNKNOWN_PHASE_Q16,
+            placed: false,
         }
     }
 
@@ -85,6 +108,57 @@ impl TickTracker {
         };
         self.last_t = Some(t_ns);
         self.dir = step;
+        self.fit_start(t_ns, step);
+    }
+
+    /// The first ticks in one direction place the wheel inside its count at power-on.
+    fn fit_start(&mut self, t_ns: u64, step: i8) {
+        let n = self.first_len as usize;
+        let (Some(slot), true) = (self.first.get_mut(n), n == 0 || step == self.first_dir) else {
+            // Done, or the wheel turned back before the fit was complete: keep what we have.
+            self.first_len = self.first.len() as u8;
+            return;
+        };
+        *slot = t_ns;
+        self.first_dir = step;
+        self.first_len += 1;
+        let fitted = self
+            .first
+            .get(..=n)
+            .and_then(|first| start::start_position_q16(self.start_ns, first));
+        if let Some(u) = fitted {
+            // `u` counts the first direction's ticks from the start; backwards the first edge
+            // is the count's lower one.
+            self.phase_q16 = if step > 0 { u } else { (1 << 16) - u };
+            self.placed = true;
+        }
+    }
+
+    /// A wheel its own first ticks could not place, moving at its first interval's speed:
+    /// the window `[t1 − interval, t1]` (not before power-on) in which it must have started
+    /// for its start to lie inside its count.
+    fn start_window(&self) -> Option<(u64, u64, u64)> {
+        if self.placed || self.first_len < 2 {
+            return None;
+        }
+        let (t1, t2) = (self.first[0], self.first[1]);
+        let interval = t2.checked_sub(t1).filter(|&i| i > 0 && i < 1 << 40)?;
+        Some((t1.saturating_sub(interval).max(self.start_ns), t1, interval))
+    }
+
+    /// Place an unplaced wheel as if it started at `t_start` at its first interval's speed.
+    fn place_from(&mut self, t_start: u64) {
+        if let Some((_, t1, interval)) = self.start_window() {
+            let before = t1.saturating_sub(t_start).min(interval);
+            // u = 1 − (t1 − t_start) / interval, Q16, inside [0, 1).
+            // `before ≤ interval < 2^40`: the shift fits; `checked_div` keeps panics out.
+            let Some(frac) = (before << 16).checked_div(interval) else {
+                return;
+            };
+            let u = (1 << 16) - frac as i64;
+            let u = u.clamp(0, MAX_FRACTION);
+            self.phase_q16 = if self.first_dir > 0 { u } else { (1 << 16) - u };
+        }
     }
 
     /// Cumulative whole counts.
@@ -92,15 +166,28 @@ impl TickTracker {
         self.count
     }
 
-    /// Best estimate of the wheel's position at `t_ns` (not before the last tick), Q16 counts.
-    /// Before the first tick, and after a reversal until a second tick in the new direction,
-    /// there is no speed to go on: the wheel is taken to be at its last edge (or count).
+    /// Where inside its count the wheel stood at power-on, as far as its ticks tell: Q16
+    /// counts in `[0, 1]` (half a count until they tell).
+    pub fn phase_q16(&self) -> i64 {
+        self.phase_q16
+    }
+
+    /// Best estimate of the wheel's travel since power-on at `t_ns` (not before the last
+    /// tick), Q16 counts, plus the count at power-on: an edge is `phase` after the count it
+    /// starts. Before the first tick it is the count at power-on (no motion seen).
     pub fn position_q16(&self, t_ns: u64) -> i64 {
+        if self.last_t.is_none() {
+            return self.count << 16;
+        }
+        self.edge_position_q16(t_ns) - self.phase_q16
+    }
+
+    /// Position on the encoder's own scale (edges at whole counts). After a reversal until a
+    /// second tick in the new direction there is no speed to go on: the wheel is taken to be
+    /// at its last edge.
+    fn edge_position_q16(&self, t_ns: u64) -> i64 {
         let (Some(last), Some(interval)) = (self.last_t, self.interval) else {
-            return match self.last_t {
-                Some(_) => self.edge << 16,
-                None => self.count << 16,
-            };
+            return self.edge << 16;
         };
         let since = t_ns.saturating_sub(last);
         // Positive by construction; `max(1)` lets the compiler see it too, so no
@@ -160,13 +247,13 @@ mod tests {
         w.tick(2_000, -1); // back over edge 1: count 0, position 1
         assert_eq!(w.count(), 0);
         assert_eq!(
-            w.position_q16(2_500),
+            w.edge_position_q16(2_500),
             1 << 16,
             "no speed yet after a reversal"
         );
         w.tick(3_000, -1); // over edge 0: count -1, position 0
-        assert_eq!(w.position_q16(3_000), 0);
-        assert_eq!(w.position_q16(3_500), -(1 << 15));
+        assert_eq!(w.edge_position_q16(3_000), 0);
+        assert_eq!(w.edge_position_q16(3_500), -(1 << 15));
     }
 
     #[test]
@@ -212,12 +299,77 @@ mod tests {
     }
 
     #[test]
+    fn a_wheel_powered_on_inside_its_count_is_placed_by_its_first_ticks() {
+        // 0.3 of a count in at power-on, then 1000 counts/s: ticks at 0.7, 1.7, 2.7 ms.
+        let mut w = TickTracker::starting(10, 0);
+        w.tick(700_000, 1);
+        assert_eq!(
+            w.phase_q16(),
+            1 << 15,
+            "one tick: not placed yet, the middle"
+        );
+        w.tick(1_700_000, 1);
+        assert!((w.phase_q16() - 19_661).abs() <= 1, "{}", w.phase_q16()); // 0.3 count
+                                                                           // Travel since power-on: 2.5 counts at 2.5 ms.
+        let p = w.position_q16(2_500_000) - (10 << 16);
+        assert!((p - 163_840).abs() <= 2, "{}", p as f64 / 65536.0);
+    }
+
+    #[test]
+    fn wheels_that_start_abruptly_after_a_rest_are_placed_together() {
+        // At rest for 1 s, then 1000 and 600 counts/s at once from 0.35 and 0.8 of a count.
+        let start = 1_000_000_000u64;
+        let ticks = |phi: f64, per_s: f64| -> [u64; 2] {
+            core::array::from_fn(|k| start + ((k as f64 + 1.0 - phi) / per_s * 1e9) as u64)
+        };
+        let mut wheels = [TickTracker::starting(0, 0), TickTracker::starting(0, 0)];
+        for (w, t) in wheels
+            .iter_mut()
+            .zip([ticks(0.35, 1000.0), ticks(0.8, 600.0)])
+        {
+            for &t in &t {
+                w.tick(t, 1);
+            }
+        }
+        // Neither wheel's own ticks can place it (any start before the first tick fits).
+        assert!(wheels.iter().all(|w| w.phase_q16() == 1 << 15));
+        place_together(&mut wheels);
+        // Common window: [0.35 ms after the start − 1 ms, ...]: each wheel within half the
+        // window at its own speed, under half a count; here both land within 0.2 count.
+        for (w, phi) in wheels.iter().zip([0.35, 0.8]) {
+            let got = w.phase_q16() as f64 / 65536.0;
+            assert!((got - phi).abs() < 0.2, "{got} vs {phi}");
+        }
+    }
+
+    #[test]
     fn corrupt_steps_are_ignored() {
         let mut w = TickTracker::new();
         w.tick(1, 3);
         w.tick(2, 0);
         assert_eq!(w.count(), 0);
         assert_eq!(w.position_q16(10), 0);
+    }
+}
+
+/// Wheels that their own first ticks could not place started moving together: after a rest
+/// the body starts as one, so an abrupt start (whose instant no single wheel can tell) must lie
+/// in every such wheel's window `[t1 − first interval, t1]`. Each is placed as if it started
+/// in the middle of their common window; a wheel's error is then at most half the window at
+/// its own speed, under half a count, and the fastest wheel narrows the window for all.
+/// Call after every tick (it does nothing once every wheel is placed). Integer-only.
+pub fn place_together(trackers: &mut [TickTracker]) {
+    let (mut lo, mut hi, mut any) = (0u64, u64::MAX, false);
+    for w in trackers.iter().filter_map(TickTracker::start_window) {
+        lo = lo.max(w.0);
+        hi = hi.min(w.1);
+        any = true;
+    }
+    if any && lo <= hi {
+        let t_start = lo + (hi - lo) / 2;
+        for t in trackers.iter_mut() {
+            t.place_from(t_start);
+        }
     }
 }
 
