@@ -52,6 +52,12 @@ enum Command {
         /// Write run.csv (the log), path.svg (paths plot) and summary.json into this folder.
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Where the two measuring-wheel encoders stand within their counts at power-on,
+        /// fractions of a count in [0, 1) [default: drawn from the seed]. The slave assumes
+        /// 0 (each wheel on an edge); their difference tilts the carriage heading it
+        /// integrates by (P1 - P0) counts over the wheel base (docs/odometry.md).
+        #[arg(long, value_name = "P0,P1", value_parser = parse_phase)]
+        encoder_phase: Option<[f64; 2]>,
         /// Fault injection: cut the slave's power at this simulated time (seconds).
         #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
         fault_slave_off_at: Option<f64>,
@@ -156,6 +162,17 @@ fn main() -> ExitCode {
     }
 }
 
+/// `--encoder-phase P0,P1`: two fractions of a count, each in [0, 1).
+fn parse_phase(s: &str) -> Result<[f64; 2], String> {
+    let bad = || format!("expected two fractions of a count in [0, 1), e.g. 0.25,0.5; got {s:?}");
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    let p = [a, b].map(|v| v.trim().parse::<f64>().ok());
+    match p {
+        [Some(a), Some(b)] if (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) => Ok([a, b]),
+        _ => Err(bad()),
+    }
+}
+
 /// An odometry method by name; unknown names are refused with the list.
 fn parse_method(name: &str) -> Result<robot_math::odometry::Method, String> {
     robot_math::odometry::Method::from_name(name).ok_or_else(|| {
@@ -177,6 +194,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
             sweep,
             out,
+            encoder_phase,
             fault_slave_off_at,
             fault_host_silent_after,
         } => {
@@ -196,6 +214,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 // The board's configuration.
                 _ => {}
             }
+            opts.encoder_phase = encoder_phase;
             opts.faults.slave_off_at = fault_slave_off_at;
             opts.faults.host_silent_after = fault_host_silent_after;
             if let Some(n) = sweep {

@@ -16,11 +16,13 @@ pub fn run_sweep(
         let s = emulator::run(scenario, &o)?.summary;
         if !json {
             println!(
-                "seed {:>4}: final error {:7.3} mm, max {:7.3} mm, heading {:+7.3} deg, {:5.1} mm from goal, rejected frames {}",
+                "seed {:>4}: final error {:7.3} mm, max {:7.3} mm, heading {:+7.3} deg, encoder phases {:.2}/{:.2}, {:5.1} mm from goal, rejected frames {}",
                 s.seed,
                 s.final_error_m * 1e3,
                 s.max_error_m * 1e3,
                 s.final_heading_error_rad.to_degrees(),
+                s.encoder_phase[0],
+                s.encoder_phase[1],
                 s.distance_to_goal_m * 1e3,
                 s.spi_frames_rejected + s.serial_frames_rejected
             );

@@ -23,6 +23,7 @@ pub fn summary_text(s: &Summary) -> String {
          simulated       {sim:.3} s in {wall:.3} s wall ({speed:.0}x real time)\n\
          path length     {path:.3} m\n\
          slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
+         encoders        {p0:.3} and {p1:.3} of a count past an edge at power-on (the slave assumes 0)\n\
          robot           ended at ({x:.4}, {y:.4}) m, {dg:.1} mm from the goal{arr}\n\
          SPI frames      {spi} exchanged, {spir} rejected\n\
          serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",
@@ -36,6 +37,8 @@ pub fn summary_text(s: &Summary) -> String {
         fe = s.final_error_m * 1e3,
         me = s.max_error_m * 1e3,
         he = s.final_heading_error_rad.to_degrees(),
+        p0 = s.encoder_phase[0],
+        p1 = s.encoder_phase[1],
         x = s.final_position_m.0,
         y = s.final_position_m.1,
         dg = s.distance_to_goal_m * 1e3,
