@@ -1,7 +1,7 @@
 //! The exact tick generator: tick instants against closed forms, counts against closed-form
 //! rolled distances, reversals, ordering, rows, refusals, and a round trip through a
 //! tick-stream file. (The catalogue's shapes: `catalogue.rs`; seed 004's carriage:
-//! `generate_carriage.rs`.)
+//! `generate_carriage.rs`; power-on phases: `generate_phase.rs`.)
 
 mod common;
 
@@ -52,6 +52,8 @@ impl Trajectory for Shuttle {
 
 #[test]
 fn constant_speed_line_ticks_at_k_step_over_v_to_one_ns() {
+    // Encoders powered on exactly on an edge, so that tick k is at k·step/v
+    // (generate_phase.rs checks the other phases: tick k at (k − φ)·step/v).
     // Differential robot: both wheels roll at v along +x.
     let r = robot("seed001.toml");
     let v = 0.37;
@@ -59,7 +61,7 @@ fn constant_speed_line_ticks_at_k_step_over_v_to_one_ns() {
         twist: Twist::new(v, 0.0, 0.0),
         duration: 2.5,
     };
-    let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let stream = generate(&r, None, &traj, &edge_aligned()).unwrap();
     for (i, enc) in r.encoders.iter().enumerate() {
         let step = enc.metres_per_count;
         let ticks = ticks_of(&stream, i as u16);
@@ -84,7 +86,7 @@ fn constant_speed_line_ticks_at_k_step_over_v_to_one_ns() {
         twist: Twist::new(v * a.ux, v * a.uy, 0.0),
         duration: 1.3,
     };
-    let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let stream = generate(&r, None, &traj, &edge_aligned()).unwrap();
     for (i, enc) in r.encoders.iter().enumerate() {
         let speed = enc.wheel.rolling_speed(traj.twist);
         let step = enc.metres_per_count;
@@ -108,7 +110,7 @@ fn constant_speed_line_ticks_at_k_step_over_v_to_one_ns() {
 fn a_long_constant_speed_run_does_not_drift() {
     // 100 s at 0.4 m/s (seed 001's 40 m) with 0.4 mm counts: 100 000 ticks per wheel, the last
     // still within half a nanosecond of k·step/v (the running distance is summed with
-    // compensation over 100 000 intervals).
+    // compensation over 100 000 intervals). Edge-aligned at power-on for that closed form.
     let r = robot("seed001.toml");
     let v = 0.4;
     let traj = Constant {
@@ -116,7 +118,7 @@ fn a_long_constant_speed_run_does_not_drift() {
         duration: 100.0 + 1e-6,
     };
     let start = std::time::Instant::now();
-    let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let stream = generate(&r, None, &traj, &edge_aligned()).unwrap();
     println!("40 m, 2 wheels: {:?}", start.elapsed());
     let step = r.encoders[0].metres_per_count;
     let ticks = ticks_of(&stream, 0);
@@ -131,8 +133,10 @@ fn a_long_constant_speed_run_does_not_drift() {
 
 #[test]
 fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
+    // Random power-on phases (the default): the count is floor((φ·step + rolled) / step).
     // Differential robot, heading along the path: a wheel at y_i rolls L − y_i·Δθ.
     let diff = robot("seed001.toml");
+    let off = offsets(&diff, &opts());
     let cases = [
         (
             "seed002-circle",
@@ -155,7 +159,7 @@ fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
             let rolled = length - enc.wheel.y * turn;
             assert_count(
                 net(&stream, i as u16),
-                rolled,
+                off[i] + rolled,
                 enc.metres_per_count,
                 &format!("{name} encoder {i}"),
             );
@@ -163,13 +167,14 @@ fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
     }
     // Omni robot on a line along +x with a fixed heading: wheel i rolls u_ix·L.
     let omni = robot("seed000-0.1mm.toml");
+    let off = offsets(&omni, &opts());
     let traj = build("seed000-line").unwrap();
     let stream = generate(&omni, None, traj.as_ref(), &opts()).unwrap();
     for (i, enc) in omni.encoders.iter().enumerate() {
         let rolled = enc.wheel.ux * trajectory::SEED000_LENGTH_M;
         assert_count(
             net(&stream, i as u16),
-            rolled,
+            off[i] + rolled,
             enc.metres_per_count,
             &format!("seed000-line encoder {i}"),
         );
@@ -181,7 +186,8 @@ fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
     let stream = generate(&omni, None, traj.as_ref(), &opts()).unwrap();
     let lever: f64 = omni.encoders[0].wheel.row()[2];
     let total: i64 = (0..3).map(|i| net(&stream, i)).sum();
-    let expected = 3.0 * lever * PI / omni.encoders[0].metres_per_count;
+    let step = omni.encoders[0].metres_per_count;
+    let expected = (3.0 * lever * PI + off.iter().sum::<f64>()) / step;
     assert!(
         (total as f64 - expected).abs() <= 3.0,
         "sum of counts {total}, expected {expected}"
@@ -191,9 +197,11 @@ fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
 #[test]
 fn every_catalogue_trajectory_generates_for_every_robot_it_suits() {
     // Counts against the rolled distance integrated here independently (Gauss–Legendre on
-    // 1 ms pieces of the rolling speed), time order, and the last truth row.
+    // 1 ms pieces of the rolling speed) from the random power-on phases, time order, and the
+    // last truth row.
     for robot_file in ["seed000-0.8mm.toml", "seed001.toml"] {
         let r = robot(robot_file);
+        let off = offsets(&r, &opts());
         for named in catalogue() {
             let traj = build(named.name).unwrap();
             if check_drive(&r, named.drive).is_err() {
@@ -213,7 +221,7 @@ fn every_catalogue_trajectory_generates_for_every_robot_it_suits() {
                 let rolled = integral(traj.as_ref(), |tw| enc.wheel.rolling_speed(tw));
                 assert_count(
                     net(&stream, i as u16),
-                    rolled,
+                    off[i] + rolled,
                     enc.metres_per_count,
                     &format!("{robot_file} {} encoder {i}", named.name),
                 );
@@ -238,34 +246,41 @@ fn reversing_wheel_counts_are_the_floor_of_its_distance_at_all_times() {
         freq: 1.7,
         duration: 2.3,
     };
+    // Random power-on phases: each wheel's count is floor((φ·step + x) / step).
     let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let off = offsets(&r, &opts());
     let step = r.encoders[0].metres_per_count;
-    let ticks = ticks_of(&stream, 0);
-    assert!(ticks.iter().any(|&(_, s)| s == 1) && ticks.iter().any(|&(_, s)| s == -1));
-    // Probe a few thousand instants away from tick times.
-    let mut checked = 0;
-    for k in 0..4000 {
-        let t_ns = (k as f64 * 2.3e9 / 4000.0 + 123.0) as u64;
-        if ticks.iter().any(|&(t, _)| t.abs_diff(t_ns) < 3) {
-            continue;
+    for (i, off) in off.iter().enumerate() {
+        let ticks = ticks_of(&stream, i as u16);
+        assert!(ticks.iter().any(|&(_, s)| s == 1) && ticks.iter().any(|&(_, s)| s == -1));
+        // Probe a few thousand instants away from tick times.
+        let mut checked = 0;
+        for k in 0..4000 {
+            let t_ns = (k as f64 * 2.3e9 / 4000.0 + 123.0) as u64;
+            if ticks.iter().any(|&(t, _)| t.abs_diff(t_ns) < 3) {
+                continue;
+            }
+            let count: i64 = ticks
+                .iter()
+                .take_while(|&&(t, _)| t <= t_ns)
+                .map(|&(_, s)| s as i64)
+                .sum();
+            let expected = ((off + traj.x(t_ns as f64 * 1e-9)) / step).floor() as i64;
+            assert_eq!(count, expected, "encoder {i} at {t_ns} ns");
+            checked += 1;
         }
-        let count: i64 = ticks
-            .iter()
-            .take_while(|&&(t, _)| t <= t_ns)
-            .map(|&(_, s)| s as i64)
-            .sum();
-        let expected = (traj.x(t_ns as f64 * 1e-9) / step).floor() as i64;
-        assert_eq!(count, expected, "at {t_ns} ns");
-        checked += 1;
+        assert!(checked > 3900);
     }
-    assert!(checked > 3900);
-    // Both wheels of a differential robot see the same thing here.
-    assert_eq!(ticks, ticks_of(&stream, 1));
+    // Both wheels of a differential robot roll the same here: at the same phase they tick
+    // together.
+    let same = generate(&r, None, &traj, &at_phase(0.3)).unwrap();
+    assert_eq!(ticks_of(&same, 0), ticks_of(&same, 1));
 }
 
 #[test]
 fn accelerating_wheel_ticks_at_the_closed_form_instants() {
-    // x(t) = A·sin(wt): while it rises, edge m is crossed at asin(m·step/A)/w.
+    // x(t) = A·sin(wt): while it rises, edge m is crossed where φ·step + x = m·step, at
+    // asin((m − φ)·step/A)/w (random power-on phase φ).
     let r = robot("seed001.toml");
     let traj = Shuttle {
         amplitude: 0.0123,
@@ -273,13 +288,17 @@ fn accelerating_wheel_ticks_at_the_closed_form_instants() {
         duration: 0.1,
     };
     let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let off = offsets(&r, &opts())[0];
     let step = r.encoders[0].metres_per_count;
     let w = TAU * traj.freq;
     let ticks = ticks_of(&stream, 0);
-    assert_eq!(ticks.len() as i64, (traj.x(0.1) / step).floor() as i64);
+    assert_eq!(
+        ticks.len() as i64,
+        ((off + traj.x(0.1)) / step).floor() as i64
+    );
     for (k, &(t_ns, s)) in ticks.iter().enumerate() {
         assert_eq!(s, 1);
-        let exact_ns = ((k + 1) as f64 * step / traj.amplitude).asin() / w * 1e9;
+        let exact_ns = (((k + 1) as f64 * step - off) / traj.amplitude).asin() / w * 1e9;
         assert!(
             (t_ns as f64 - exact_ns).abs() <= 0.51,
             "tick {}: {t_ns} ns, exact {exact_ns}",
@@ -291,7 +310,8 @@ fn accelerating_wheel_ticks_at_the_closed_form_instants() {
 #[test]
 fn a_reversal_just_past_an_edge_ticks_there_and_back() {
     // The wheel peaks 2 nm past edge 30 and comes back: +1 and -1 about 0.1 ms apart, both
-    // inside one 1 ms integration interval, at the closed-form instants.
+    // inside one 1 ms integration interval, at the closed-form instants. The encoder powers
+    // on exactly on an edge, so that the peak is 2 nm past one.
     let r = robot("seed001.toml");
     let step = r.encoders[0].metres_per_count;
     let traj = Shuttle {
@@ -299,7 +319,7 @@ fn a_reversal_just_past_an_edge_ticks_there_and_back() {
         freq: 1.7,
         duration: 0.16,
     };
-    let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let stream = generate(&r, None, &traj, &edge_aligned()).unwrap();
     let w = TAU * traj.freq;
     let ticks = ticks_of(&stream, 0);
     assert_eq!(ticks.len(), 31, "{:?}", &ticks[28..]);

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use host_bench::formats::robot::Robot;
 use host_bench::formats::tickstream::{Event, TickStream};
-use host_bench::sim::generate::GenerateOptions;
+use host_bench::sim::generate::{phases, GenerateOptions, PowerOnPhase};
 use host_bench::sim::trajectory::Trajectory;
 use robot_math::se2::{Pose2, Twist};
 
@@ -27,8 +27,36 @@ pub fn scratch(test: &str) -> PathBuf {
     dir
 }
 
+/// The default options: random power-on phases, seed 0.
 pub fn opts() -> GenerateOptions {
     GenerateOptions::default()
+}
+
+/// Every encoder powered on exactly on the edge of a count: for the tests whose closed forms
+/// are written for that case (tick k at k·step/v, a peak just past edge m).
+pub fn edge_aligned() -> GenerateOptions {
+    GenerateOptions {
+        phase: PowerOnPhase::Zero,
+        ..opts()
+    }
+}
+
+/// With every encoder at `phase` of a count.
+pub fn at_phase(phase: f64) -> GenerateOptions {
+    GenerateOptions {
+        phase: PowerOnPhase::Fraction(phase),
+        ..opts()
+    }
+}
+
+/// Each encoder's distance inside its count at power-on (phase × step), metres.
+pub fn offsets(robot: &Robot, opts: &GenerateOptions) -> Vec<f64> {
+    phases(robot, opts.phase)
+        .unwrap()
+        .iter()
+        .zip(&robot.encoders)
+        .map(|(p, e)| p * e.metres_per_count)
+        .collect()
 }
 
 /// Per encoder: the tick instants (ns) and steps, in stream order.
@@ -54,19 +82,20 @@ pub fn net(stream: &TickStream, encoder: u16) -> i64 {
         .sum()
 }
 
-/// `count == floor(rolled / step)`; if `rolled / step` is within 1e-6 of a whole number
-/// rounding may put it on either side, so either neighbour is accepted.
-pub fn assert_count(count: i64, rolled: f64, step: f64, what: &str) {
-    let x = rolled / step;
+/// `count == floor(position / step)`, position = power-on offset + rolled distance; if
+/// `position / step` is within 1e-6 of a whole number rounding may put it on either side, so
+/// either neighbour is accepted.
+pub fn assert_count(count: i64, position: f64, step: f64, what: &str) {
+    let x = position / step;
     let expected = x.floor() as i64;
     if (x - x.round()).abs() < 1e-6 {
         let r = x.round() as i64;
         assert!(
             count == r || count == r - 1,
-            "{what}: {count} counts, rolled {rolled} m = {x} steps"
+            "{what}: {count} counts, at {position} m = {x} steps"
         );
     } else {
-        assert_eq!(count, expected, "{what}: rolled {rolled} m = {x} steps");
+        assert_eq!(count, expected, "{what}: at {position} m = {x} steps");
     }
 }
 
@@ -94,7 +123,7 @@ pub fn path_length(traj: &dyn Trajectory) -> f64 {
 }
 
 /// ∫ f(twist(t)) dt over the trajectory, 5-point Gauss–Legendre on 1 ms pieces between
-/// breakpoints.
+/// breakpoints (so only inside pieces: a twist that jumps at a breakpoint is fine).
 pub fn integral(traj: &dyn Trajectory, f: impl Fn(Twist) -> f64) -> f64 {
     const X: [f64; 5] = [
         -0.906_179_845_938_664,

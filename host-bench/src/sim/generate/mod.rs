@@ -1,10 +1,13 @@
 //! The exact tick-stream generator (SPEC §5): what ideal encoders would report while the robot
 //! follows a [`Trajectory`].
 //!
-//! Incremental encoder `i` has rolled `s_i(t) = ∫_0^t rolling_speed_i(twist(τ)) dτ` at time `t`
-//! and shows the count `floor(s_i(t) / step_i)`. It ticks `+1` at the exact instant `s_i`
-//! reaches a multiple `m·step` from below and `-1` at the instant it falls below one, so the sum
-//! of its ticks up to any time is its count then, and the total is `floor(s_i(T) / step_i)`.
+//! Incremental encoder `i` has rolled `s_i(t) = ∫_0^t rolling_speed_i(twist(τ)) dτ` at time `t`.
+//! It powered on at phase φ_i in `[0, 1)` of a count ([`PowerOnPhase`], random by default: real
+//! encoders do not start on an edge), so it shows the count `floor((φ_i·step_i + s_i(t)) /
+//! step_i)`, 0 at t = 0. It ticks `+1` at the exact instant `φ_i·step_i + s_i` reaches a
+//! multiple `m·step` from below and `-1` at the instant it falls below one, so the sum of its
+//! ticks up to any time is its count then, and the total is `floor((φ_i·step_i + s_i(T)) /
+//! step_i)`.
 //!
 //! How the instants are found:
 //! 1. `[0, T]` is cut at the trajectory's [`breakpoints`](Trajectory::breakpoints) (so the
@@ -53,9 +56,11 @@ use crate::sim::trajectory::{Drive, Trajectory};
 use robot_math::wheel::Wheel;
 
 use interp::{Frames, Interp};
+pub use phase::{phases, PowerOnPhase};
 use ticker::Ticker;
 
 mod interp;
+mod phase;
 mod ticker;
 
 /// Longest integration interval, seconds.
@@ -65,20 +70,24 @@ pub const TIME_TOL_S: f64 = 1e-12;
 /// Largest sideways speed (m/s) tolerated on a robot that cannot move sideways.
 pub const SIDEWAYS_TOL_M_S: f64 = 1e-9;
 
-/// Rates of the sampled rows.
+/// Rates of the sampled rows, and where the encoders stand at power-on.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GenerateOptions {
     /// Truth rows per second (plus one at the end).
     pub truth_rate_hz: f64,
     /// Absolute-encoder readings per second (plus one at the end), if the robot has one.
     pub abs_rate_hz: f64,
+    /// Where each incremental encoder stands inside its count at t = 0.
+    pub phase: PowerOnPhase,
 }
 
 impl Default for GenerateOptions {
+    /// 100 Hz truth, 1 kHz absolute readings, random phases with seed 0 (as the CLI).
     fn default() -> Self {
         GenerateOptions {
             truth_rate_hz: 100.0,
             abs_rate_hz: 1000.0,
+            phase: PowerOnPhase::Random { seed: 0 },
         }
     }
 }
@@ -165,6 +174,7 @@ pub fn generate(
     let end_ns = to_ns(duration);
 
     let differential = is_differential(robot);
+    let phase = phases(robot, opts.phase)?;
     let abs_times = if abs.is_empty() {
         Vec::new()
     } else {
@@ -177,7 +187,7 @@ pub fn generate(
         trail,
         phi: traj.pose(0.0).theta,
     };
-    let mut ticks = Ticker::new(robot);
+    let mut ticks = Ticker::new(robot, &phase);
     let mut cuts: Vec<f64> = traj
         .breakpoints()
         .into_iter()
@@ -263,7 +273,7 @@ pub fn generate(
         }
     }
 
-    let rolled = ticks.rolled();
+    let totals = ticks.totals();
     events.append(&mut ticks.events);
     // Stable: each encoder's ticks are already in time order; ties keep truth, abs, ticks.
     events.sort_by_key(Event::t_ns);
@@ -282,11 +292,22 @@ pub fn generate(
              heading integrated with RK4"
         ));
     }
-    for (i, (e, s)) in robot.encoders.iter().zip(&rolled).enumerate() {
+    let each: Vec<String> = robot
+        .encoders
+        .iter()
+        .zip(&phase)
+        .enumerate()
+        .map(|(i, (e, p))| format!("encoder {i} ({}) at {p:.6} of a count", e.name))
+        .collect();
+    comments.push(format!(
+        "power-on phase: {}; {}",
+        opts.phase,
+        each.join(", ")
+    ));
+    for (i, (e, (s, count))) in robot.encoders.iter().zip(&totals).enumerate() {
         comments.push(format!(
-            "encoder {i} ({}): rolled {s:.9} m, {} counts",
-            e.name,
-            (s / e.metres_per_count).floor()
+            "encoder {i} ({}): rolled {s:.9} m, {count} counts",
+            e.name
         ));
     }
     Ok(TickStream {

@@ -37,22 +37,47 @@ impl Sum {
 pub(super) struct Ticker {
     wheels: Vec<Wheel>,
     steps: Vec<f64>,
+    /// Where each encoder stood inside its count at power-on, metres (phase × step).
+    offsets: Vec<f64>,
+    /// Offset plus distance rolled so far: the count is `floor(rolled / step)`.
     rolled: Vec<Sum>,
     pub(super) events: Vec<Event>,
 }
 
 impl Ticker {
-    pub(super) fn new(robot: &Robot) -> Ticker {
+    /// `phases`: each encoder's power-on phase, in `[0, 1)` of a count.
+    pub(super) fn new(robot: &Robot, phases: &[f64]) -> Ticker {
+        let steps: Vec<f64> = robot.encoders.iter().map(|e| e.metres_per_count).collect();
+        let offsets: Vec<f64> = steps
+            .iter()
+            .zip(phases)
+            .map(|(&step, &phase)| {
+                // φ·step rounds up to the step itself for φ within an ulp of 1: stay inside
+                // count 0, so that counts start at 0 whatever the phase.
+                let mut offset = phase * step;
+                while (offset / step).floor() >= 1.0 {
+                    offset = offset.next_down();
+                }
+                offset
+            })
+            .collect();
         Ticker {
             wheels: robot.encoder_wheels(),
-            steps: robot.encoders.iter().map(|e| e.metres_per_count).collect(),
-            rolled: vec![Sum::default(); robot.encoders.len()],
+            rolled: offsets.iter().map(|&hi| Sum { hi, lo: 0.0 }).collect(),
+            offsets,
+            steps,
             events: Vec::new(),
         }
     }
 
-    pub(super) fn rolled(&self) -> Vec<f64> {
-        self.rolled.iter().map(Sum::value).collect()
+    /// Per encoder: the distance rolled since power-on (metres) and the count now.
+    pub(super) fn totals(&self) -> Vec<(f64, i64)> {
+        self.rolled
+            .iter()
+            .zip(&self.offsets)
+            .zip(&self.steps)
+            .map(|((r, &offset), &step)| (r.minus(offset), (r.value() / step).floor() as i64))
+            .collect()
     }
 
     /// Advances every encoder over the interval of `frame` (the twist of the wheels' frame).
