@@ -78,26 +78,7 @@ enum Command {
     },
     /// Write the exact tick stream a robot's ideal encoders produce along a trajectory
     /// (docs/tick-stream.md).
-    Generate {
-        /// List the trajectories and exit.
-        #[arg(long)]
-        list: bool,
-        /// Robot description (docs/robot-format.md).
-        #[arg(long, value_name = "FILE", required_unless_present = "list")]
-        robot: Option<PathBuf>,
-        /// Trajectory name (see --list).
-        #[arg(long, required_unless_present = "list")]
-        trajectory: Option<String>,
-        /// Output file (.csv, or .csv.gz to compress).
-        #[arg(long, value_name = "FILE", required_unless_present = "list")]
-        out: Option<PathBuf>,
-        /// Ground-truth rows per second.
-        #[arg(long, default_value_t = 100.0)]
-        truth_rate: f64,
-        /// Absolute-encoder readings per second (robots that have one).
-        #[arg(long, default_value_t = 1000.0)]
-        abs_rate: f64,
-    },
+    Generate(cli::generate::GenerateArgs),
     /// Run odometry estimators over a tick stream (docs/tick-stream.md) and score them
     /// against its truth rows.
     Replay {
@@ -237,14 +218,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Accuracy { json, out } => cli::analyse::run_accuracy(json, out),
-        Command::Generate {
-            list,
-            robot,
-            trajectory,
-            out,
-            truth_rate,
-            abs_rate,
-        } => cli::analyse::run_generate(list, robot, trajectory, out, truth_rate, abs_rate),
+        Command::Generate(a) => cli::generate::run_generate(a),
         Command::Replay {
             robot,
             ticks,

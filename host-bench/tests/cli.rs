@@ -174,3 +174,62 @@ fn replay_that_scores_nothing_fails_with_the_reasons() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(out.stdout.is_empty());
 }
+
+#[test]
+fn generate_takes_the_power_on_phase_and_its_seed() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/seed001.toml");
+    let run = |file: &str, extra: &[&str]| {
+        let out = host_bench()
+            .args(["generate", "--trajectory", "seed002-circle", "--robot"])
+            .arg(&robot)
+            .arg("--out")
+            .arg(dir.path().join(file))
+            .args(extra)
+            .output()
+            .unwrap();
+        let text = std::fs::read_to_string(dir.path().join(file)).unwrap_or_default();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+            text,
+        )
+    };
+    let phase_line = |text: &str| {
+        text.lines()
+            .find(|l| l.starts_with("# power-on phase:"))
+            .unwrap_or_default()
+            .to_string()
+    };
+    // The default is random with seed 0; the same seed writes the same file, another another.
+    let (ok, err, default) = run("default.csv", &[]);
+    assert!(ok, "{err}");
+    assert!(
+        phase_line(&default).starts_with("# power-on phase: random seed 0; encoder 0 (left) at ")
+    );
+    let (_, _, seed0) = run("seed0.csv", &["--phase", "random", "--seed", "0"]);
+    let (_, _, seed5) = run("seed5.csv", &["--seed", "5"]);
+    assert_eq!(default, seed0);
+    assert!(phase_line(&seed5).starts_with("# power-on phase: random seed 5;"));
+    assert_ne!(phase_line(&seed5), phase_line(&default));
+    let (ok, err, quarter) = run("quarter.csv", &["--phase", "0.25"]);
+    assert!(ok, "{err}");
+    assert!(phase_line(&quarter).contains("encoder 1 (right) at 0.250000 of a count"));
+    let (ok, err, zero) = run("zero.csv", &["--phase", "zero"]);
+    assert!(ok, "{err}");
+    assert!(phase_line(&zero).starts_with("# power-on phase: zero"));
+    // Refused, and nothing written.
+    for (file, extra, says) in [
+        ("one.csv", &["--phase", "1"][..], "[0, 1)"),
+        ("word.csv", &["--phase", "half"][..], "[0, 1)"),
+        (
+            "seeded.csv",
+            &["--phase", "zero", "--seed", "3"][..],
+            "--seed",
+        ),
+    ] {
+        let (ok, err, text) = run(file, extra);
+        assert!(!ok && err.contains(says), "{extra:?}: {err}");
+        assert!(text.is_empty(), "{extra:?}");
+    }
+}

@@ -1,99 +1,25 @@
-//! The trajectory catalogue and the exact tick generator: tick instants against closed forms,
-//! counts against closed-form rolled distances, reversals, ordering, the catalogue's shapes
-//! and lengths, and a round trip through a tick-stream file.
+//! The exact tick generator: tick instants against closed forms, counts against closed-form
+//! rolled distances, reversals, ordering, rows, refusals, and a round trip through a
+//! tick-stream file. (The catalogue's shapes: `catalogue.rs`; seed 004's carriage:
+//! `generate_carriage.rs`; power-on phases: `generate_phase.rs`.)
+
+mod common;
 
 use std::f64::consts::{PI, TAU};
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use common::*;
 use host_bench::formats::robot::{AbsMeasures, Robot};
-use host_bench::formats::tickstream::{self, Event, TickStream};
+use host_bench::formats::tickstream::{self, Event};
 use host_bench::sim::generate::{
     abs_code, check_drive, generate, is_differential, GenerateOptions,
 };
 use host_bench::sim::trajectory::{self, build, catalogue, Drive, Trajectory};
-use robot_math::carriage::CarriageOdometry;
 use robot_math::se2::{wrap_angle, Pose2, Twist};
-
-fn robot(name: &str) -> Robot {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../robots")
-        .join(name);
-    Robot::load(&path).unwrap()
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("generate-tests")
-        .join(test);
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn opts() -> GenerateOptions {
-    GenerateOptions::default()
-}
-
-/// Per encoder: the tick instants (ns) and steps, in stream order.
-fn ticks_of(stream: &TickStream, encoder: u16) -> Vec<(u64, i8)> {
-    stream
-        .events
-        .iter()
-        .filter_map(|e| match *e {
-            Event::Tick {
-                t_ns,
-                encoder: id,
-                step,
-            } if id == encoder => Some((t_ns, step)),
-            _ => None,
-        })
-        .collect()
-}
-
-fn net(stream: &TickStream, encoder: u16) -> i64 {
-    ticks_of(stream, encoder)
-        .iter()
-        .map(|&(_, s)| s as i64)
-        .sum()
-}
-
-/// `count == floor(rolled / step)`; if `rolled / step` is within 1e-6 of a whole number
-/// rounding may put it on either side, so either neighbour is accepted.
-fn assert_count(count: i64, rolled: f64, step: f64, what: &str) {
-    let x = rolled / step;
-    let expected = x.floor() as i64;
-    if (x - x.round()).abs() < 1e-6 {
-        let r = x.round() as i64;
-        assert!(
-            count == r || count == r - 1,
-            "{what}: {count} counts, rolled {rolled} m = {x} steps"
-        );
-    } else {
-        assert_eq!(count, expected, "{what}: rolled {rolled} m = {x} steps");
-    }
-}
 
 // ---------------------------------------------------------------------------------------------
 // Hand-made trajectories with closed forms.
-
-/// Constant body twist from t = 0 (not from rest: exact tick instants are k·step/v).
-struct Constant {
-    twist: Twist,
-    duration: f64,
-}
-
-impl Trajectory for Constant {
-    fn duration(&self) -> f64 {
-        self.duration
-    }
-    fn pose(&self, t: f64) -> Pose2 {
-        Pose2::default().integrate(self.twist, t)
-    }
-    fn twist(&self, _: f64) -> Twist {
-        self.twist
-    }
-}
 
 /// Back and forth along body x: x(t) = A·sin(2πft), heading 0.
 struct Shuttle {
@@ -126,6 +52,8 @@ impl Trajectory for Shuttle {
 
 #[test]
 fn constant_speed_line_ticks_at_k_step_over_v_to_one_ns() {
+    // Encoders powered on exactly on an edge, so that tick k is at k·step/v
+    // (generate_phase.rs checks the other phases: tick k at (k − φ)·step/v).
     // Differential robot: both wheels roll at v along +x.
     let r = robot("seed001.toml");
     let v = 0.37;
@@ -133,7 +61,7 @@ fn constant_speed_line_ticks_at_k_step_over_v_to_one_ns() {
         twist: Twist::new(v, 0.0, 0.0),
         duration: 2.5,
     };
-    let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let stream = generate(&r, None, &traj, &edge_aligned()).unwrap();
     for (i, enc) in r.encoders.iter().enumerate() {
         let step = enc.metres_per_count;
         let ticks = ticks_of(&stream, i as u16);
@@ -158,7 +86,7 @@ fn constant_speed_line_ticks_at_k_step_over_v_to_one_ns() {
         twist: Twist::new(v * a.ux, v * a.uy, 0.0),
         duration: 1.3,
     };
-    let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let stream = generate(&r, None, &traj, &edge_aligned()).unwrap();
     for (i, enc) in r.encoders.iter().enumerate() {
         let speed = enc.wheel.rolling_speed(traj.twist);
         let step = enc.metres_per_count;
@@ -182,7 +110,7 @@ fn constant_speed_line_ticks_at_k_step_over_v_to_one_ns() {
 fn a_long_constant_speed_run_does_not_drift() {
     // 100 s at 0.4 m/s (seed 001's 40 m) with 0.4 mm counts: 100 000 ticks per wheel, the last
     // still within half a nanosecond of k·step/v (the running distance is summed with
-    // compensation over 100 000 intervals).
+    // compensation over 100 000 intervals). Edge-aligned at power-on for that closed form.
     let r = robot("seed001.toml");
     let v = 0.4;
     let traj = Constant {
@@ -190,7 +118,7 @@ fn a_long_constant_speed_run_does_not_drift() {
         duration: 100.0 + 1e-6,
     };
     let start = std::time::Instant::now();
-    let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let stream = generate(&r, None, &traj, &edge_aligned()).unwrap();
     println!("40 m, 2 wheels: {:?}", start.elapsed());
     let step = r.encoders[0].metres_per_count;
     let ticks = ticks_of(&stream, 0);
@@ -205,8 +133,10 @@ fn a_long_constant_speed_run_does_not_drift() {
 
 #[test]
 fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
+    // Random power-on phases (the default): the count is floor((φ·step + rolled) / step).
     // Differential robot, heading along the path: a wheel at y_i rolls L − y_i·Δθ.
     let diff = robot("seed001.toml");
+    let off = offsets(&diff, &opts());
     let cases = [
         (
             "seed002-circle",
@@ -229,7 +159,7 @@ fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
             let rolled = length - enc.wheel.y * turn;
             assert_count(
                 net(&stream, i as u16),
-                rolled,
+                off[i] + rolled,
                 enc.metres_per_count,
                 &format!("{name} encoder {i}"),
             );
@@ -237,13 +167,14 @@ fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
     }
     // Omni robot on a line along +x with a fixed heading: wheel i rolls u_ix·L.
     let omni = robot("seed000-0.1mm.toml");
+    let off = offsets(&omni, &opts());
     let traj = build("seed000-line").unwrap();
     let stream = generate(&omni, None, traj.as_ref(), &opts()).unwrap();
     for (i, enc) in omni.encoders.iter().enumerate() {
         let rolled = enc.wheel.ux * trajectory::SEED000_LENGTH_M;
         assert_count(
             net(&stream, i as u16),
-            rolled,
+            off[i] + rolled,
             enc.metres_per_count,
             &format!("seed000-line encoder {i}"),
         );
@@ -255,7 +186,8 @@ fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
     let stream = generate(&omni, None, traj.as_ref(), &opts()).unwrap();
     let lever: f64 = omni.encoders[0].wheel.row()[2];
     let total: i64 = (0..3).map(|i| net(&stream, i)).sum();
-    let expected = 3.0 * lever * PI / omni.encoders[0].metres_per_count;
+    let step = omni.encoders[0].metres_per_count;
+    let expected = (3.0 * lever * PI + off.iter().sum::<f64>()) / step;
     assert!(
         (total as f64 - expected).abs() <= 3.0,
         "sum of counts {total}, expected {expected}"
@@ -265,9 +197,11 @@ fn total_ticks_equal_floor_of_the_closed_form_rolled_distance() {
 #[test]
 fn every_catalogue_trajectory_generates_for_every_robot_it_suits() {
     // Counts against the rolled distance integrated here independently (Gauss–Legendre on
-    // 1 ms pieces of the rolling speed), time order, and the last truth row.
+    // 1 ms pieces of the rolling speed) from the random power-on phases, time order, and the
+    // last truth row.
     for robot_file in ["seed000-0.8mm.toml", "seed001.toml"] {
         let r = robot(robot_file);
+        let off = offsets(&r, &opts());
         for named in catalogue() {
             let traj = build(named.name).unwrap();
             if check_drive(&r, named.drive).is_err() {
@@ -287,7 +221,7 @@ fn every_catalogue_trajectory_generates_for_every_robot_it_suits() {
                 let rolled = integral(traj.as_ref(), |tw| enc.wheel.rolling_speed(tw));
                 assert_count(
                     net(&stream, i as u16),
-                    rolled,
+                    off[i] + rolled,
                     enc.metres_per_count,
                     &format!("{robot_file} {} encoder {i}", named.name),
                 );
@@ -312,34 +246,41 @@ fn reversing_wheel_counts_are_the_floor_of_its_distance_at_all_times() {
         freq: 1.7,
         duration: 2.3,
     };
+    // Random power-on phases: each wheel's count is floor((φ·step + x) / step).
     let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let off = offsets(&r, &opts());
     let step = r.encoders[0].metres_per_count;
-    let ticks = ticks_of(&stream, 0);
-    assert!(ticks.iter().any(|&(_, s)| s == 1) && ticks.iter().any(|&(_, s)| s == -1));
-    // Probe a few thousand instants away from tick times.
-    let mut checked = 0;
-    for k in 0..4000 {
-        let t_ns = (k as f64 * 2.3e9 / 4000.0 + 123.0) as u64;
-        if ticks.iter().any(|&(t, _)| t.abs_diff(t_ns) < 3) {
-            continue;
+    for (i, off) in off.iter().enumerate() {
+        let ticks = ticks_of(&stream, i as u16);
+        assert!(ticks.iter().any(|&(_, s)| s == 1) && ticks.iter().any(|&(_, s)| s == -1));
+        // Probe a few thousand instants away from tick times.
+        let mut checked = 0;
+        for k in 0..4000 {
+            let t_ns = (k as f64 * 2.3e9 / 4000.0 + 123.0) as u64;
+            if ticks.iter().any(|&(t, _)| t.abs_diff(t_ns) < 3) {
+                continue;
+            }
+            let count: i64 = ticks
+                .iter()
+                .take_while(|&&(t, _)| t <= t_ns)
+                .map(|&(_, s)| s as i64)
+                .sum();
+            let expected = ((off + traj.x(t_ns as f64 * 1e-9)) / step).floor() as i64;
+            assert_eq!(count, expected, "encoder {i} at {t_ns} ns");
+            checked += 1;
         }
-        let count: i64 = ticks
-            .iter()
-            .take_while(|&&(t, _)| t <= t_ns)
-            .map(|&(_, s)| s as i64)
-            .sum();
-        let expected = (traj.x(t_ns as f64 * 1e-9) / step).floor() as i64;
-        assert_eq!(count, expected, "at {t_ns} ns");
-        checked += 1;
+        assert!(checked > 3900);
     }
-    assert!(checked > 3900);
-    // Both wheels of a differential robot see the same thing here.
-    assert_eq!(ticks, ticks_of(&stream, 1));
+    // Both wheels of a differential robot roll the same here: at the same phase they tick
+    // together.
+    let same = generate(&r, None, &traj, &at_phase(0.3)).unwrap();
+    assert_eq!(ticks_of(&same, 0), ticks_of(&same, 1));
 }
 
 #[test]
 fn accelerating_wheel_ticks_at_the_closed_form_instants() {
-    // x(t) = A·sin(wt): while it rises, edge m is crossed at asin(m·step/A)/w.
+    // x(t) = A·sin(wt): while it rises, edge m is crossed where φ·step + x = m·step, at
+    // asin((m − φ)·step/A)/w (random power-on phase φ).
     let r = robot("seed001.toml");
     let traj = Shuttle {
         amplitude: 0.0123,
@@ -347,13 +288,17 @@ fn accelerating_wheel_ticks_at_the_closed_form_instants() {
         duration: 0.1,
     };
     let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let off = offsets(&r, &opts())[0];
     let step = r.encoders[0].metres_per_count;
     let w = TAU * traj.freq;
     let ticks = ticks_of(&stream, 0);
-    assert_eq!(ticks.len() as i64, (traj.x(0.1) / step).floor() as i64);
+    assert_eq!(
+        ticks.len() as i64,
+        ((off + traj.x(0.1)) / step).floor() as i64
+    );
     for (k, &(t_ns, s)) in ticks.iter().enumerate() {
         assert_eq!(s, 1);
-        let exact_ns = ((k + 1) as f64 * step / traj.amplitude).asin() / w * 1e9;
+        let exact_ns = (((k + 1) as f64 * step - off) / traj.amplitude).asin() / w * 1e9;
         assert!(
             (t_ns as f64 - exact_ns).abs() <= 0.51,
             "tick {}: {t_ns} ns, exact {exact_ns}",
@@ -365,7 +310,8 @@ fn accelerating_wheel_ticks_at_the_closed_form_instants() {
 #[test]
 fn a_reversal_just_past_an_edge_ticks_there_and_back() {
     // The wheel peaks 2 nm past edge 30 and comes back: +1 and -1 about 0.1 ms apart, both
-    // inside one 1 ms integration interval, at the closed-form instants.
+    // inside one 1 ms integration interval, at the closed-form instants. The encoder powers
+    // on exactly on an edge, so that the peak is 2 nm past one.
     let r = robot("seed001.toml");
     let step = r.encoders[0].metres_per_count;
     let traj = Shuttle {
@@ -373,7 +319,7 @@ fn a_reversal_just_past_an_edge_ticks_there_and_back() {
         freq: 1.7,
         duration: 0.16,
     };
-    let stream = generate(&r, None, &traj, &opts()).unwrap();
+    let stream = generate(&r, None, &traj, &edge_aligned()).unwrap();
     let w = TAU * traj.freq;
     let ticks = ticks_of(&stream, 0);
     assert_eq!(ticks.len(), 31, "{:?}", &ticks[28..]);
@@ -504,308 +450,5 @@ fn generated_stream_round_trips_through_a_file() {
         tickstream::write(&path, &stream).unwrap();
         let back = tickstream::read(&path).unwrap();
         assert_eq!(back, stream, "{name}");
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// The catalogue.
-
-/// Path length: ∫ |(v_x, v_y)| dt.
-fn path_length(traj: &dyn Trajectory) -> f64 {
-    integral(traj, |v| v.vx.hypot(v.vy))
-}
-
-/// ∫ f(twist(t)) dt over the trajectory, 5-point Gauss–Legendre on 1 ms pieces between
-/// breakpoints.
-fn integral(traj: &dyn Trajectory, f: impl Fn(Twist) -> f64) -> f64 {
-    const X: [f64; 5] = [
-        -0.906_179_845_938_664,
-        -0.538_469_310_105_683_1,
-        0.0,
-        0.538_469_310_105_683_1,
-        0.906_179_845_938_664,
-    ];
-    const W: [f64; 5] = [
-        0.236_926_885_056_189_1,
-        0.478_628_670_499_366_5,
-        0.568_888_888_888_888_9,
-        0.478_628_670_499_366_5,
-        0.236_926_885_056_189_1,
-    ];
-    let mut cuts = traj.breakpoints();
-    cuts.push(0.0);
-    cuts.push(traj.duration());
-    cuts.sort_by(f64::total_cmp);
-    let mut total = 0.0;
-    for w in cuts.windows(2) {
-        let n = ((w[1] - w[0]) / 1e-3).ceil().max(1.0) as usize;
-        let h = (w[1] - w[0]) / n as f64;
-        for j in 0..n {
-            let m = w[0] + h * (j as f64 + 0.5);
-            for (x, wt) in X.iter().zip(W) {
-                total += 0.5 * h * wt * f(traj.twist(m + 0.5 * h * x));
-            }
-        }
-    }
-    total
-}
-
-fn twist_norm(a: Twist, b: Twist) -> f64 {
-    (a.vx - b.vx)
-        .abs()
-        .max((a.vy - b.vy).abs())
-        .max((a.omega - b.omega).abs())
-}
-
-#[test]
-fn catalogue_lengths_match_the_papers() {
-    // Name, expected length (m): seed 000 80 cm; seed 001 284 cm, 40 m, 280 cm; seed 002 1 m
-    // square, its diagonal, a 0.5 m-radius circle; UMBmark 4 × 4 m.
-    let expected = [
-        ("seed000-line", 0.80),
-        ("seed000-bezier-0deg", 0.80),
-        ("seed000-bezier-90deg", 0.80),
-        ("seed000-bezier-180deg", 0.80),
-        ("seed000-two-beziers", 0.80),
-        ("seed001-figure-eight", 2.84),
-        ("seed001-straight-40m", 40.0),
-        ("seed001-curve", 2.80),
-        ("seed002-square", 4.0),
-        ("seed002-diagonal", std::f64::consts::SQRT_2),
-        ("seed002-circle", PI),
-        ("umbmark-cw", 16.0),
-        ("umbmark-ccw", 16.0),
-    ];
-    let names: Vec<&str> = catalogue().iter().map(|n| n.name).collect();
-    assert_eq!(names, expected.map(|(n, _)| n).to_vec());
-    for (name, length) in expected {
-        let traj = build(name).unwrap();
-        let l = path_length(traj.as_ref());
-        println!(
-            "{name:24} length {l:9.6} m  duration {:8.4} s",
-            traj.duration()
-        );
-        assert!(
-            (l - length).abs() < 1e-9 * length.max(1.0),
-            "{name}: length {l}, expected {length}"
-        );
-    }
-    assert!(build("no-such-trajectory").is_none());
-}
-
-#[test]
-fn every_catalogue_trajectory_starts_at_rest_and_moves_smoothly() {
-    for named in catalogue() {
-        let name = named.name;
-        let traj = build(name).unwrap();
-        let t_end = traj.duration();
-        assert!(t_end > 0.0 && t_end.is_finite(), "{name}");
-        assert_eq!(traj.pose(0.0), Pose2::default(), "{name}");
-        assert!(
-            twist_norm(traj.twist(0.0), Twist::default()) < 1e-12,
-            "{name}"
-        );
-        assert!(
-            twist_norm(traj.twist(t_end), Twist::default()) < 1e-12,
-            "{name}"
-        );
-        // Continuous twist: at every breakpoint and at 97 other instants.
-        let mut probes = traj.breakpoints();
-        probes.extend((1..98).map(|k| t_end * k as f64 / 98.0));
-        for &t in &probes {
-            let (a, b) = (traj.twist(t - 1e-7), traj.twist(t + 1e-7));
-            assert!(twist_norm(a, b) < 1e-5, "{name} at {t}: {a:?} vs {b:?}");
-            // The twist is the derivative of the pose (body frame).
-            let h = 1e-6;
-            let (p0, p1, p) = (traj.pose(t - h), traj.pose(t + h), traj.pose(t));
-            let (wx, wy) = ((p1.x - p0.x) / (2.0 * h), (p1.y - p0.y) / (2.0 * h));
-            let (s, c) = p.theta.sin_cos();
-            let numeric = Twist::new(
-                c * wx + s * wy,
-                -s * wx + c * wy,
-                (p1.theta - p0.theta) / (2.0 * h),
-            );
-            let tw = traj.twist(t);
-            assert!(
-                twist_norm(numeric, tw) < 1e-6,
-                "{name} at {t}: {numeric:?} vs {tw:?}"
-            );
-            if named.drive == Drive::Differential {
-                assert_eq!(tw.vy, 0.0, "{name} at {t}");
-            }
-            // Plausible speeds.
-            assert!(tw.vx.hypot(tw.vy) <= 0.4 + 1e-12, "{name} at {t}");
-        }
-    }
-}
-
-#[test]
-fn integrating_the_twist_lands_on_the_pose() {
-    for named in catalogue() {
-        let traj = build(named.name).unwrap();
-        let t_end = traj.duration();
-        let n = (t_end / 1e-3).ceil() as usize;
-        let h = t_end / n as f64;
-        let mut p = traj.pose(0.0);
-        for j in 0..n {
-            // Midpoint twist through the SE(2) exponential: second order.
-            p = p.integrate(traj.twist((j as f64 + 0.5) * h), h);
-        }
-        let q = traj.pose(t_end);
-        assert!(
-            p.distance_to(q) < 1e-5 && (p.theta - q.theta).abs() < 1e-6,
-            "{}: integrated {p:?}, pose {q:?}",
-            named.name
-        );
-    }
-}
-
-#[test]
-fn closed_paths_return_to_their_start() {
-    for (name, turn) in [
-        ("seed002-circle", TAU),
-        ("seed002-square", 0.0),
-        ("seed001-figure-eight", 0.0),
-        ("umbmark-ccw", TAU),
-        ("umbmark-cw", -TAU),
-    ] {
-        let traj = build(name).unwrap();
-        let (a, b) = (traj.pose(0.0), traj.pose(traj.duration()));
-        assert!(a.distance_to(b) < 1e-9, "{name}: {a:?} -> {b:?}");
-        assert!(
-            (b.theta - a.theta - turn).abs() < 1e-9,
-            "{name}: {a:?} -> {b:?}"
-        );
-    }
-    // Half way round the circle is the far side: (0, 2R), heading π.
-    let circle = build("seed002-circle").unwrap();
-    let mid = circle.pose(circle.duration() / 2.0);
-    let r = trajectory::SEED002_CIRCLE_RADIUS_M;
-    assert!(mid.distance_to(Pose2::new(0.0, 2.0 * r, PI)) < 1e-9 && (mid.theta - PI).abs() < 1e-9);
-}
-
-#[test]
-fn seed000_headings_turn_as_named() {
-    for (name, turn) in [
-        ("seed000-bezier-0deg", 0.0),
-        ("seed000-bezier-90deg", PI / 2.0),
-        ("seed000-bezier-180deg", PI),
-        ("seed000-two-beziers", 0.0),
-    ] {
-        let traj = build(name).unwrap();
-        let end = traj.pose(traj.duration());
-        assert!((end.theta - turn).abs() < 1e-12, "{name}: {end:?}");
-        // Heading linear in distance: at half the length, half the turn.
-        assert_eq!(
-            trajectory::named(name).unwrap().drive,
-            Drive::Holonomic,
-            "{name}"
-        );
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Seed 004's swivel carriage.
-
-/// Abs rows decoded to positions: (t_ns, position).
-fn swivel_positions(r: &Robot, stream: &TickStream) -> Vec<(u64, u16)> {
-    let a = r.absolute_encoder(AbsMeasures::CarriageSwivel).unwrap();
-    stream
-        .events
-        .iter()
-        .filter_map(|e| match *e {
-            Event::Abs { t_ns, code, .. } => Some((t_ns, a.decode(code as u16))),
-            _ => None,
-        })
-        .collect()
-}
-
-#[test]
-fn carriage_on_a_straight_line_rolls_both_wheels_the_full_length() {
-    // Moving straight ahead from rest the carriage stays aligned: both wheels roll the
-    // 80 cm, the swivel reads 0 throughout (raw 0xFF: Gray, active-low).
-    let r = robot("seed004.toml");
-    let traj = build("seed000-line").unwrap();
-    let stream = generate(&r, None, traj.as_ref(), &opts()).unwrap();
-    for (i, enc) in r.encoders.iter().enumerate() {
-        assert_count(
-            net(&stream, i as u16),
-            trajectory::SEED000_LENGTH_M,
-            enc.metres_per_count,
-            &format!("encoder {i}"),
-        );
-    }
-    assert!(stream
-        .events
-        .iter()
-        .all(|e| !matches!(e, Event::Abs { code, .. } if *code != 0xFF)));
-}
-
-#[test]
-fn carriage_swings_behind_a_sideways_motion() {
-    // Translating at 45° with the body heading fixed, the caster swings from 0 to 45°:
-    // position 32 of 256 at the end; it only ever swings one way.
-    let r = robot("seed004.toml");
-    let traj = build("seed002-diagonal").unwrap();
-    let stream = generate(&r, None, traj.as_ref(), &opts()).unwrap();
-    let pos = swivel_positions(&r, &stream);
-    assert_eq!(pos[0].1, 0);
-    assert_eq!(pos.last().unwrap().1, 32);
-    assert!(pos.windows(2).all(|w| w[1].1 >= w[0].1));
-    // The left wheel rolls less than the right while the carriage turns left.
-    assert!(net(&stream, 0) < net(&stream, 1));
-}
-
-#[test]
-fn carriage_odometry_on_generated_streams_follows_the_truth() {
-    // Seed 004's arc odometry (robot-math) run on the generated counts and swivel codes lands
-    // on the truth: it only can if the carriage in the generator obeys the same no-slip caster
-    // geometry. Errors come from the 1.4° swivel quantisation (heading, not accumulating) and
-    // the 33 µm counts.
-    let r = robot("seed004.toml");
-    let geom = r.carriage_geometry().unwrap();
-    for name in [
-        "seed002-circle",
-        "seed002-square",
-        "seed000-bezier-90deg",
-        "seed001-figure-eight",
-    ] {
-        let traj = build(name).unwrap();
-        let stream = generate(&r, None, traj.as_ref(), &opts()).unwrap();
-        let a = r.absolute_encoder(AbsMeasures::CarriageSwivel).unwrap();
-        let mut counts = [0i64; 2];
-        let mut odo: Option<CarriageOdometry> = None;
-        let mut last_truth = None;
-        let (mut worst_xy, mut worst_theta) = (0.0f64, 0.0f64);
-        for e in &stream.events {
-            match *e {
-                Event::Tick { encoder, step, .. } => counts[encoder as usize] += step as i64,
-                Event::Truth {
-                    t_ns,
-                    x_m,
-                    y_m,
-                    theta_rad,
-                } => last_truth = Some((t_ns, Pose2::new(x_m, y_m, theta_rad))),
-                Event::Abs { t_ns, code, .. } => {
-                    let code = a.decode(code as u16);
-                    let o = odo.get_or_insert_with(|| {
-                        CarriageOdometry::new(geom, traj.pose(0.0), counts, code)
-                    });
-                    let p = o.update(counts, code);
-                    if let Some((tt, truth)) = last_truth {
-                        if tt == t_ns {
-                            worst_xy = worst_xy.max(p.distance_to(truth));
-                            worst_theta = worst_theta.max(wrap_angle(p.theta - truth.theta).abs());
-                        }
-                    }
-                }
-            }
-        }
-        println!("{name}: worst position error {worst_xy:.6} m, heading {worst_theta:.5} rad");
-        assert!(worst_xy < 3e-3, "{name}: position error {worst_xy} m");
-        assert!(
-            worst_theta <= geom.abs_step() / 2.0 + 1e-3,
-            "{name}: heading error {worst_theta}"
-        );
     }
 }

@@ -1,4 +1,4 @@
-//! The analysis commands: `accuracy`, `generate`, `replay`.
+//! The analysis commands: `accuracy`, `replay` (`generate` is in `generate.rs`).
 
 use std::path::PathBuf;
 
@@ -37,101 +37,6 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>) -> anyhow::Result<()> {
         print!("{}", accuracy::table(&results));
     }
     Ok(())
-}
-
-pub fn run_generate(
-    list: bool,
-    robot: Option<PathBuf>,
-    trajectory: Option<String>,
-    out: Option<PathBuf>,
-    truth_rate_hz: f64,
-    abs_rate_hz: f64,
-) -> anyhow::Result<()> {
-    use host_bench::formats::{robot::Robot, tickstream};
-    use host_bench::sim::{generate, trajectory as traj};
-    if list {
-        for t in traj::catalogue() {
-            let drive = match t.drive {
-                traj::Drive::Differential => "any robot",
-                traj::Drive::Holonomic => "omni robots",
-            };
-            println!(
-                "{:<24} {:<10} {:<11} {}",
-                t.name, t.paper, drive, t.description
-            );
-        }
-        return Ok(());
-    }
-    // clap guarantees these without --list.
-    let (Some(robot_path), Some(name), Some(out)) = (robot, trajectory, out) else {
-        anyhow::bail!("--robot, --trajectory and --out are required");
-    };
-    for (flag, v) in [("--truth-rate", truth_rate_hz), ("--abs-rate", abs_rate_hz)] {
-        anyhow::ensure!(
-            v.is_finite() && v > 0.0,
-            "{flag} must be a positive number of Hz, got {v}"
-        );
-    }
-    let robot = Robot::load(&robot_path)?;
-    let named = traj::named(&name).ok_or_else(|| {
-        anyhow::anyhow!("unknown trajectory {name:?}; `host-bench generate --list` names them")
-    })?;
-    generate::check_drive(&robot, named.drive)?;
-    let t = traj::build(&name)
-        .ok_or_else(|| anyhow::anyhow!("trajectory {name:?} could not be built"))?;
-    // The stream names its robot relative to where the stream is written.
-    let header = relative_path(
-        &robot_path,
-        out.parent().unwrap_or(std::path::Path::new(".")),
-    );
-    let stream = generate::generate(
-        &robot,
-        header.as_deref(),
-        t.as_ref(),
-        &generate::GenerateOptions {
-            truth_rate_hz,
-            abs_rate_hz,
-        },
-    )?;
-    tickstream::write(&out, &stream)?;
-    let ticks = stream
-        .events
-        .iter()
-        .filter(|e| matches!(e, tickstream::Event::Tick { .. }))
-        .count();
-    eprintln!(
-        "wrote {} ({} events, {} ticks, {:.3} s of {})",
-        out.display(),
-        stream.events.len(),
-        ticks,
-        t.duration(),
-        name
-    );
-    Ok(())
-}
-
-/// `target` relative to the directory `from`, when both resolve (for the `# robot:` line).
-fn relative_path(target: &std::path::Path, from: &std::path::Path) -> Option<String> {
-    let target = std::fs::canonicalize(target).ok()?;
-    let from = std::fs::canonicalize(if from.as_os_str().is_empty() {
-        std::path::Path::new(".")
-    } else {
-        from
-    })
-    .ok()?;
-    let common = target
-        .components()
-        .zip(from.components())
-        .take_while(|(a, b)| a == b)
-        .count();
-    let mut rel = std::path::PathBuf::new();
-    for _ in from.components().skip(common) {
-        rel.push("..");
-    }
-    for c in target.components().skip(common) {
-        rel.push(c);
-    }
-    rel.to_str().map(str::to_owned)
 }
 
 pub fn run_replay(

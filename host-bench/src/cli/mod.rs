@@ -1,6 +1,8 @@
-//! The subcommands' bodies; `main.rs` holds the argument definitions.
+//! The subcommands' bodies, and the argument structs of those with more than a few flags
+//! (`main.rs` holds the rest).
 
 pub mod analyse;
 pub mod flash;
+pub mod generate;
 pub mod serial;
 pub mod sweep;

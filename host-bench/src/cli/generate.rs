@@ -1,0 +1,144 @@
+//! `generate`: the exact tick stream of a robot's ideal encoders along a catalogue trajectory.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, ensure, Result};
+use clap::Args;
+use host_bench::formats::{robot::Robot, tickstream};
+use host_bench::sim::generate::{self, PowerOnPhase};
+use host_bench::sim::trajectory as traj;
+
+#[derive(Args, Debug)]
+pub struct GenerateArgs {
+    /// List the trajectories and exit.
+    #[arg(long)]
+    pub list: bool,
+    /// Robot description (docs/robot-format.md).
+    #[arg(long, value_name = "FILE", required_unless_present = "list")]
+    pub robot: Option<PathBuf>,
+    /// Trajectory name (see --list).
+    #[arg(long, required_unless_present = "list")]
+    pub trajectory: Option<String>,
+    /// Output file (.csv, or .csv.gz to compress).
+    #[arg(long, value_name = "FILE", required_unless_present = "list")]
+    pub out: Option<PathBuf>,
+    /// Ground-truth rows per second.
+    #[arg(long, default_value_t = 100.0)]
+    pub truth_rate: f64,
+    /// Absolute-encoder readings per second (robots that have one).
+    #[arg(long, default_value_t = 1000.0)]
+    pub abs_rate: f64,
+    /// Where each encoder stands inside its count at power-on: `random` (each encoder its own
+    /// phase, from --seed), `zero` (every encoder exactly on an edge: the special case), or a
+    /// fraction of a count in [0, 1) for every encoder.
+    #[arg(long, value_name = "random|zero|FRACTION", default_value = "random")]
+    pub phase: String,
+    /// Seed of the random phases [default: 0]; only with --phase random.
+    #[arg(long, value_name = "N")]
+    pub seed: Option<u64>,
+}
+
+/// `--phase` and `--seed` as a [`PowerOnPhase`].
+fn power_on_phase(phase: &str, seed: Option<u64>) -> Result<PowerOnPhase> {
+    let p = match phase {
+        "random" => PowerOnPhase::Random {
+            seed: seed.unwrap_or(0),
+        },
+        "zero" => PowerOnPhase::Zero,
+        other => match other.parse::<f64>() {
+            Ok(x) if (0.0..1.0).contains(&x) => PowerOnPhase::Fraction(x),
+            _ => bail!(
+                "--phase must be random, zero, or a fraction of a count in [0, 1), got {other:?}"
+            ),
+        },
+    };
+    if seed.is_some() && !matches!(p, PowerOnPhase::Random { .. }) {
+        bail!("--seed only applies to --phase random (got --phase {phase})");
+    }
+    Ok(p)
+}
+
+pub fn run_generate(a: GenerateArgs) -> Result<()> {
+    if a.list {
+        for t in traj::catalogue() {
+            let drive = match t.drive {
+                traj::Drive::Differential => "any robot",
+                traj::Drive::Holonomic => "omni robots",
+            };
+            println!(
+                "{:<24} {:<18} {:<11} {}",
+                t.name, t.paper, drive, t.description
+            );
+        }
+        return Ok(());
+    }
+    // clap guarantees these without --list.
+    let (Some(robot_path), Some(name), Some(out)) = (a.robot, a.trajectory, a.out) else {
+        bail!("--robot, --trajectory and --out are required");
+    };
+    for (flag, v) in [("--truth-rate", a.truth_rate), ("--abs-rate", a.abs_rate)] {
+        ensure!(
+            v.is_finite() && v > 0.0,
+            "{flag} must be a positive number of Hz, got {v}"
+        );
+    }
+    let phase = power_on_phase(&a.phase, a.seed)?;
+    let robot = Robot::load(&robot_path)?;
+    let named = traj::named(&name).ok_or_else(|| {
+        anyhow::anyhow!("unknown trajectory {name:?}; `host-bench generate --list` names them")
+    })?;
+    generate::check_drive(&robot, named.drive)?;
+    let t = traj::build(&name)
+        .ok_or_else(|| anyhow::anyhow!("trajectory {name:?} could not be built"))?;
+    // The stream names its robot relative to where the stream is written.
+    let header = relative_path(&robot_path, out.parent().unwrap_or(Path::new(".")));
+    let stream = generate::generate(
+        &robot,
+        header.as_deref(),
+        t.as_ref(),
+        &generate::GenerateOptions {
+            truth_rate_hz: a.truth_rate,
+            abs_rate_hz: a.abs_rate,
+            phase,
+        },
+    )?;
+    tickstream::write(&out, &stream)?;
+    let ticks = stream
+        .events
+        .iter()
+        .filter(|e| matches!(e, tickstream::Event::Tick { .. }))
+        .count();
+    eprintln!(
+        "wrote {} ({} events, {} ticks, {:.3} s of {}, power-on phase {phase})",
+        out.display(),
+        stream.events.len(),
+        ticks,
+        t.duration(),
+        name
+    );
+    Ok(())
+}
+
+/// `target` relative to the directory `from`, when both resolve (for the `# robot:` line).
+fn relative_path(target: &Path, from: &Path) -> Option<String> {
+    let target = std::fs::canonicalize(target).ok()?;
+    let from = std::fs::canonicalize(if from.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        from
+    })
+    .ok()?;
+    let common = target
+        .components()
+        .zip(from.components())
+        .take_while(|(a, b)| a == b)
+        .count();
+    let mut rel = PathBuf::new();
+    for _ in from.components().skip(common) {
+        rel.push("..");
+    }
+    for c in target.components().skip(common) {
+        rel.push(c);
+    }
+    rel.to_str().map(str::to_owned)
+}

@@ -1,0 +1,246 @@
+//! Each encoder's rolled distance, summed interval by interval, and its edge crossings found by
+//! root finding.
+
+use super::interp::{Interp, SAMPLES};
+use super::{to_ns, TIME_TOL_S};
+use crate::formats::robot::Robot;
+use crate::formats::tickstream::Event;
+use crate::sim::trajectory::gl5;
+use robot_math::wheel::Wheel;
+
+/// A running sum with Neumaier compensation.
+#[derive(Clone, Copy, Debug, Default)]
+struct Sum {
+    hi: f64,
+    lo: f64,
+}
+
+impl Sum {
+    fn add(&mut self, x: f64) {
+        let t = self.hi + x;
+        if self.hi.abs() >= x.abs() {
+            self.lo += (self.hi - t) + x;
+        } else {
+            self.lo += (x - t) + self.hi;
+        }
+        self.hi = t;
+    }
+    fn value(&self) -> f64 {
+        self.hi + self.lo
+    }
+    /// `self − e`, without losing the compensation.
+    fn minus(&self, e: f64) -> f64 {
+        (self.hi - e) + self.lo
+    }
+}
+
+pub(super) struct Ticker {
+    wheels: Vec<Wheel>,
+    steps: Vec<f64>,
+    /// Where each encoder stood inside its count at power-on, metres (phase × step).
+    offsets: Vec<f64>,
+    /// Offset plus distance rolled so far: the count is `floor(rolled / step)`.
+    rolled: Vec<Sum>,
+    pub(super) events: Vec<Event>,
+}
+
+impl Ticker {
+    /// `phases`: each encoder's power-on phase, in `[0, 1)` of a count.
+    pub(super) fn new(robot: &Robot, phases: &[f64]) -> Ticker {
+        let steps: Vec<f64> = robot.encoders.iter().map(|e| e.metres_per_count).collect();
+        let offsets: Vec<f64> = steps
+            .iter()
+            .zip(phases)
+            .map(|(&step, &phase)| {
+                // φ·step rounds up to the step itself for φ within an ulp of 1: stay inside
+                // count 0, so that counts start at 0 whatever the phase.
+                let mut offset = phase * step;
+                while (offset / step).floor() >= 1.0 {
+                    offset = offset.next_down();
+                }
+                offset
+            })
+            .collect();
+        Ticker {
+            wheels: robot.encoder_wheels(),
+            rolled: offsets.iter().map(|&hi| Sum { hi, lo: 0.0 }).collect(),
+            offsets,
+            steps,
+            events: Vec::new(),
+        }
+    }
+
+    /// Per encoder: the distance rolled since power-on (metres) and the count now.
+    pub(super) fn totals(&self) -> Vec<(f64, i64)> {
+        self.rolled
+            .iter()
+            .zip(&self.offsets)
+            .zip(&self.steps)
+            .map(|((r, &offset), &step)| (r.minus(offset), (r.value() / step).floor() as i64))
+            .collect()
+    }
+
+    /// Advances every encoder over the interval of `frame` (the twist of the wheels' frame).
+    pub(super) fn interval(&mut self, frame: &Interp) {
+        let (t0, t1) = (frame.t[0], frame.t[SAMPLES - 1]);
+        for i in 0..self.wheels.len() {
+            let row = self.wheels[i].row();
+            let speed = |v: &[f64; 4]| row[0] * v[0] + row[1] * v[1] + row[2] * v[2];
+            let rate = |t: f64| speed(&frame.eval(t));
+            let speeds = frame.v.map(|v| speed(&v));
+            // Reversals: where the sign of the speed changes between non-zero samples.
+            let mut splits = Vec::new();
+            let mut last: Option<usize> = None;
+            for k in 0..SAMPLES {
+                if speeds[k] == 0.0 {
+                    continue;
+                }
+                if let Some(l) = last {
+                    if (speeds[l] > 0.0) != (speeds[k] > 0.0) {
+                        splits.push(bisect_sign(&rate, frame.t[l], frame.t[k], speeds[l] > 0.0));
+                    }
+                }
+                last = Some(k);
+            }
+            let mut a = t0;
+            for b in splits.into_iter().chain(std::iter::once(t1)) {
+                if b > a {
+                    let ds = gl5(a, b, rate);
+                    self.piece(i, &rate, a, b, ds);
+                    a = b;
+                }
+            }
+        }
+    }
+
+    /// Encoder `i` rolls `ds` monotonically over `[a, b]`: emit its edge crossings.
+    fn piece(&mut self, i: usize, rate: &dyn Fn(f64) -> f64, a: f64, b: f64, ds: f64) {
+        let step = self.steps[i];
+        let start = self.rolled[i];
+        let mut end = start;
+        end.add(ds);
+        let c0 = (start.value() / step).floor() as i64;
+        let c1 = (end.value() / step).floor() as i64;
+        self.rolled[i] = end;
+        if c0 == c1 {
+            return;
+        }
+        let up = c1 > c0;
+        let dir = if up { 1.0 } else { -1.0 };
+        let edges: Box<dyn Iterator<Item = i64>> = if up {
+            Box::new(c0 + 1..=c1)
+        } else {
+            Box::new((c1 + 1..=c0).rev())
+        };
+        // g(t) = dir·(s(t) − edge): negative before the crossing, ≥ 0 after it. At `a` it is
+        // dir·base; at the previous crossing about −step; at `b` dir·(base + ds).
+        let mut lo = a;
+        for m in edges {
+            let edge = m as f64 * step;
+            let base = start.minus(edge);
+            let g = |t: f64| dir * (base + gl5(a, t, rate));
+            let g_lo = if lo == a { dir * base } else { -step };
+            let g_hi = dir * (base + ds);
+            let t = find_crossing(&g, &|t| dir * rate(t), (lo, g_lo), (b, g_hi));
+            self.events.push(Event::Tick {
+                t_ns: to_ns(t),
+                encoder: i as u16,
+                step: if up { 1 } else { -1 },
+            });
+            lo = t;
+        }
+    }
+}
+
+/// The first instant in `[lo, hi]` where the non-decreasing `g` reaches 0, given `g` at both
+/// ends (if `g(lo) ≥ 0` already, `lo`; if `g(hi) < 0`, `hi`). Newton's method with derivative
+/// `dg`, safeguarded by bisection: every iterate stays inside the shrinking bracket.
+fn find_crossing(
+    g: &dyn Fn(f64) -> f64,
+    dg: &dyn Fn(f64) -> f64,
+    (lo, g_lo): (f64, f64),
+    (hi, g_hi): (f64, f64),
+) -> f64 {
+    let (mut lo, mut hi) = (lo, hi);
+    if g_lo >= 0.0 {
+        return lo;
+    }
+    if g_hi < 0.0 {
+        // Rounding put the edge past the end of the piece: it is crossed at its very end.
+        return hi;
+    }
+    // Start from the secant guess.
+    let mut t = lo + (hi - lo) * (-g_lo / (g_hi - g_lo));
+    for _ in 0..200 {
+        if !(t > lo && t < hi) {
+            t = 0.5 * (lo + hi);
+        }
+        let gt = g(t);
+        if gt >= 0.0 {
+            hi = t;
+        } else {
+            lo = t;
+        }
+        if hi - lo <= TIME_TOL_S {
+            break;
+        }
+        let d = dg(t);
+        let next = if d > 0.0 { t - gt / d } else { f64::NAN };
+        if next > lo && next < hi {
+            if (next - t).abs() <= TIME_TOL_S {
+                return next;
+            }
+            t = next;
+        } else {
+            t = 0.5 * (lo + hi);
+        }
+    }
+    hi
+}
+
+/// Where `rate` changes sign in `[a, b]` (positive at `a` iff `positive_at_a`), by bisection.
+fn bisect_sign(rate: &dyn Fn(f64) -> f64, a: f64, b: f64, positive_at_a: bool) -> f64 {
+    let (mut lo, mut hi) = (a, b);
+    while hi - lo > TIME_TOL_S {
+        let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi {
+            break;
+        }
+        let r = rate(mid);
+        if r != 0.0 && (r > 0.0) == positive_at_a {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crossing_of_a_line_is_exact() {
+        // g(t) = 0.3·t − 0.1: root 1/3.
+        let t = find_crossing(&|t| 0.3 * t - 0.1, &|_| 0.3, (0.0, -0.1), (1.0, 0.2));
+        assert!((t - 1.0 / 3.0).abs() < 1e-12, "{t}");
+        // Non-linear: g = t³ − 0.2 on [0, 1].
+        let t = find_crossing(
+            &|t| t * t * t - 0.2,
+            &|t| 3.0 * t * t,
+            (0.0, -0.2),
+            (1.0, 0.8),
+        );
+        assert!((t - 0.2f64.cbrt()).abs() < 1e-12, "{t}");
+    }
+
+    #[test]
+    fn compensated_sum_does_not_drift() {
+        let mut s = Sum::default();
+        for _ in 0..100_000 {
+            s.add(0.0004);
+        }
+        assert!((s.value() - 40.0).abs() < 1e-13, "{}", s.value());
+    }
+}
