@@ -12,7 +12,8 @@
 //! How the instants are found:
 //! 1. `[0, T]` is cut at the trajectory's [`breakpoints`](Trajectory::breakpoints) (so the
 //!    twist is analytic on every piece) and each piece into equal intervals of at most
-//!    [`MAX_INTERVAL_S`] (1 ms).
+//!    [`MAX_INTERVAL_S`] (1 ms). Where the twist jumps at a cut (constant-twist segments), each
+//!    interval takes its last sample from the left ([`Trajectory::twist_before`]).
 //! 2. On each interval the twist of the wheels' frame is sampled at the 11 Chebyshev–Lobatto
 //!    points and interpolated (barycentric formula, degree 10). For an analytic twist on 1 ms
 //!    the interpolation error is far below rounding (about (h/τ)^11 for a motion time scale
@@ -211,8 +212,14 @@ pub fn generate(
             if t1 <= t0 {
                 continue;
             }
-            let body = Interp::sample(t0, t1, |t| {
-                let w = traj.twist(t);
+            let body = Interp::sample(t0, t1, |t, at_end| {
+                // The interval ends at a cut or inside a piece: either way its last sample
+                // belongs to it, not to the piece that may start there with another twist.
+                let w = if at_end {
+                    traj.twist_before(t)
+                } else {
+                    traj.twist(t)
+                };
                 [w.vx, w.vy, w.omega, 0.0]
             });
             for (t, w) in body.t.iter().zip(&body.v) {
