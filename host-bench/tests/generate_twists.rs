@@ -41,8 +41,11 @@ fn ticks_across_abrupt_twist_changes_are_at_the_closed_form_instants() {
         ("seed001.toml", "twist-arcs"),
         ("seed001.toml", "twist-s-spin-reverse"),
         ("seed001.toml", "rest-then-arcs"),
+        ("diff-wide.toml", "twist-s-spin-reverse"),
         ("seed000-0.4mm.toml", "twist-sideways-spin"),
-        ("seed000-0.4mm.toml", "rest-then-arcs"),
+        ("skewed3.toml", "twist-sideways-spin"),
+        ("omni4-ls.toml", "twist-sideways-spin"),
+        ("omni4-ls.toml", "rest-then-arcs"),
     ];
     for (file, name) in cases {
         let r = robot(file);
