@@ -1,7 +1,7 @@
 //! The exact tick generator: tick instants against closed forms, counts against closed-form
 //! rolled distances, reversals, ordering, rows, refusals, and a round trip through a
 //! tick-stream file. (The catalogue's shapes: `catalogue.rs`; seed 004's carriage:
-//! `generate_carriage.rs`; power-on phases: `generate_phase.rs`.)
+//! `generate_carriage.rs`; power-on phases: `generate_phase.rs`; our robots: `layouts.rs`.)
 
 mod common;
 

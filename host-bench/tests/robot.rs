@@ -43,12 +43,15 @@ fn every_robot_file_loads_and_is_named_after_its_file() {
     assert_eq!(
         names,
         [
+            "diff-wide",
+            "omni4-ls",
             "seed000-0.1mm",
             "seed000-0.4mm",
             "seed000-0.8mm",
             "seed001",
             "seed003",
-            "seed004"
+            "seed004",
+            "skewed3"
         ]
     );
 }

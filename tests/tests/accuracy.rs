@@ -19,7 +19,9 @@ fn score<'a>(r: &'a CaseResult, name: &str) -> Option<&'a Score> {
 #[test]
 fn every_case_in_every_mode_with_all_four_methods_or_a_reason() {
     let r = results();
-    for t in trajectory::catalogue() {
+    // Every trajectory from a paper (SPEC §5). Ours ("ours": constant twists, starts after a
+    // rest) are not seed cases; the suite takes them when eval/accuracy.rs lists them.
+    for t in trajectory::catalogue().iter().filter(|t| t.paper != "ours") {
         for mode in ["timestamps", "counts@1000Hz", "counts@10000Hz"] {
             assert!(
                 r.iter().any(|c| c.case == t.name && c.mode == mode),

@@ -1,5 +1,5 @@
-//! Helpers shared by the generator and catalogue tests (`generate*.rs`, `catalogue.rs`). Each
-//! test crate uses only some of them.
+//! Helpers shared by the generator and catalogue tests (`generate*.rs`, `catalogue.rs`,
+//! `layouts.rs`). Each test crate uses only some of them.
 #![allow(dead_code)]
 
 use std::fs;

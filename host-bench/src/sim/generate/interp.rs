@@ -25,9 +25,14 @@ impl Interp {
         t
     }
 
-    pub(super) fn sample(t0: f64, t1: f64, f: impl FnMut(f64) -> [f64; 4]) -> Interp {
+    /// Samples `f(t, at_end)` at the interval's points; `at_end` is true at its last point,
+    /// `t1`, where a twist that jumps at `t1` must be taken from the left.
+    pub(super) fn sample(t0: f64, t1: f64, mut f: impl FnMut(f64, bool) -> [f64; 4]) -> Interp {
         let t = Interp::points(t0, t1);
-        Interp { t, v: t.map(f) }
+        Interp {
+            t,
+            v: std::array::from_fn(|j| f(t[j], j == SAMPLES - 1)),
+        }
     }
 
     /// The interpolant at `t` (barycentric formula; Chebyshev–Lobatto weights (−1)^j, halved

@@ -12,7 +12,8 @@
 //! How the instants are found:
 //! 1. `[0, T]` is cut at the trajectory's [`breakpoints`](Trajectory::breakpoints) (so the
 //!    twist is analytic on every piece) and each piece into equal intervals of at most
-//!    [`MAX_INTERVAL_S`] (1 ms).
+//!    [`MAX_INTERVAL_S`] (1 ms). Where the twist jumps at a cut (constant-twist segments), each
+//!    interval takes its last sample from the left ([`Trajectory::twist_before`]).
 //! 2. On each interval the twist of the wheels' frame is sampled at the 11 Chebyshev–Lobatto
 //!    points and interpolated (barycentric formula, degree 10). For an analytic twist on 1 ms
 //!    the interpolation error is far below rounding (about (h/τ)^11 for a motion time scale
@@ -105,6 +106,34 @@ pub fn is_differential(robot: &Robot) -> bool {
     encoders_along_x || drive_along_x
 }
 
+/// On a differential robot, the x (body frame) of the line across the body that cannot slide
+/// sideways: its axle. A point (x, y) of the body moves sideways at v_y + ω·x, so only a
+/// robot whose axle passes through the reference point (x = 0) can follow a trajectory with
+/// v_y = 0 while turning. The encoders' axle if they roll along x, else the drive wheels' if
+/// they share one; 0 (the reference point) when there is no single axle.
+fn axle_x(robot: &Robot) -> f64 {
+    let common_x = |xs: &mut dyn Iterator<Item = f64>| {
+        let xs: Vec<f64> = xs.collect();
+        let first = *xs.first()?;
+        xs.iter().all(|x| (x - first).abs() < 1e-9).then_some(first)
+    };
+    let encoders = robot.carriage.is_none()
+        && !robot.encoders.is_empty()
+        && robot.encoders.iter().all(|e| e.wheel.uy.abs() < 1e-9);
+    if encoders {
+        if let Some(x) = common_x(&mut robot.encoders.iter().map(|e| e.wheel.x)) {
+            return x;
+        }
+    }
+    let drive = robot.drive_wheels.iter().all(|d| d.wheel.uy.abs() < 1e-9);
+    if drive {
+        if let Some(x) = common_x(&mut robot.drive_wheels.iter().map(|d| d.wheel.x)) {
+            return x;
+        }
+    }
+    0.0
+}
+
 /// Refuses a holonomic trajectory on a differential robot.
 pub fn check_drive(robot: &Robot, drive: Drive) -> anyhow::Result<()> {
     if drive == Drive::Holonomic && is_differential(robot) {
@@ -174,6 +203,7 @@ pub fn generate(
     let end_ns = to_ns(duration);
 
     let differential = is_differential(robot);
+    let axle = axle_x(robot);
     let phase = phases(robot, opts.phase)?;
     let abs_times = if abs.is_empty() {
         Vec::new()
@@ -211,19 +241,35 @@ pub fn generate(
             if t1 <= t0 {
                 continue;
             }
-            let body = Interp::sample(t0, t1, |t| {
-                let w = traj.twist(t);
+            let body = Interp::sample(t0, t1, |t, at_end| {
+                // The interval ends at a cut or inside a piece: either way its last sample
+                // belongs to it, not to the piece that may start there with another twist.
+                let w = if at_end {
+                    traj.twist_before(t)
+                } else {
+                    traj.twist(t)
+                };
                 [w.vx, w.vy, w.omega, 0.0]
             });
             for (t, w) in body.t.iter().zip(&body.v) {
                 if !w.iter().all(|x| x.is_finite()) {
                     bail!("the trajectory's twist at t = {t} s is not finite: {w:?}");
                 }
-                if differential && w[1].abs() > SIDEWAYS_TOL_M_S {
+                let sideways = w[1] + w[2] * axle;
+                if differential && sideways.abs() > SIDEWAYS_TOL_M_S {
+                    if axle == 0.0 {
+                        bail!(
+                            "the trajectory moves sideways (v_y = {} m/s at t = {t:.6} s) but \
+                             robot {} is differential-drive (its wheels all roll along body x)",
+                            w[1],
+                            robot.name
+                        );
+                    }
                     bail!(
-                        "the trajectory moves sideways (v_y = {} m/s at t = {t:.6} s) but robot {} \
-                         is differential-drive (its wheels all roll along body x)",
-                        w[1],
+                        "the trajectory moves the axle of robot {} sideways (v_y + ω·x = \
+                         {sideways} m/s at its axle, x = {axle} m, t = {t:.6} s): a \
+                         differential-drive robot's axle cannot slide; a trajectory with v_y = 0 \
+                         that turns needs the reference point on the axle line",
                         robot.name
                     );
                 }

@@ -4,6 +4,7 @@ use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 use super::motion::{Heading, PathMotion, Sequence, Turn};
 use super::path::{Arc, ArcLength, Bezier, Gerono, Line};
+use super::segments::{Segment, Segments};
 use super::*;
 
 const CATALOGUE: &[Named] = &[
@@ -91,6 +92,40 @@ const CATALOGUE: &[Named] = &[
         paper: "Borenstein UMBmark",
         drive: Drive::Differential,
     },
+    Named {
+        name: "twist-arcs",
+        description: "three arcs at constant twist, abrupt changes: left r 0.5 m, right r 0.3 m, \
+                      left r 1 m; moving from t = 0 to the end, 2 m",
+        paper: "ours",
+        drive: Drive::Differential,
+    },
+    Named {
+        name: "twist-sideways-spin",
+        description: "constant twists, abrupt changes: sideways run, spin in place, diagonal \
+                      run while turning, then that twist reversed; moving throughout, 2 m",
+        paper: "ours",
+        drive: Drive::Holonomic,
+    },
+    Named {
+        name: "twist-s-spin-reverse",
+        description: "constant twists, abrupt changes: arc left, arc right, spin in place, \
+                      straight in reverse; moving throughout, 1.8 m",
+        paper: "ours",
+        drive: Drive::Differential,
+    },
+    Named {
+        name: "rest-then-arcs",
+        description: "0.5 s at rest, then twist-arcs starting abruptly at full speed, 2 m",
+        paper: "ours",
+        drive: Drive::Differential,
+    },
+    Named {
+        name: "rest-then-smooth-line",
+        description: "0.4 s at rest, then a smooth start (0.8 s ramp) to 0.4 m/s along +x, \
+                      still moving at the end, 1.36 m",
+        paper: "ours",
+        drive: Drive::Differential,
+    },
 ];
 
 /// Every trajectory [`build`] knows, in a stable order.
@@ -172,6 +207,39 @@ pub fn build(name: &str) -> Option<Box<dyn Trajectory>> {
         )),
         "umbmark-cw" => umbmark(false),
         "umbmark-ccw" => umbmark(true),
+        "twist-arcs" => Box::new(Segments::new(Pose2::default(), twist_arcs())),
+        "twist-sideways-spin" => Box::new(Segments::new(
+            Pose2::default(),
+            vec![
+                Segment::constant(1.8, 0.0, 0.4, 0.0),   // 0.72 m to the left
+                Segment::constant(1.2, 0.0, 0.0, 1.5),   // 1.8 rad on the spot
+                Segment::constant(1.5, 0.3, -0.3, 0.8),  // 0.64 m, turning 1.2 rad
+                Segment::constant(1.5, -0.3, 0.3, -0.8), // back along it exactly
+            ],
+        )),
+        "twist-s-spin-reverse" => Box::new(Segments::new(
+            Pose2::default(),
+            vec![
+                Segment::constant(1.5, 0.4, 0.0, 1.0), // 0.6 m left, radius 0.4 m
+                Segment::constant(1.5, 0.4, 0.0, -1.0), // 0.6 m right, radius 0.4 m
+                Segment::constant(1.0, 0.0, 0.0, 2.0), // 2 rad on the spot
+                Segment::constant(2.0, -0.3, 0.0, 0.0), // 0.6 m backwards
+            ],
+        )),
+        "rest-then-arcs" => {
+            let mut segments = vec![Segment::rest(0.5)];
+            segments.extend(twist_arcs());
+            Box::new(Segments::new(Pose2::default(), segments))
+        }
+        "rest-then-smooth-line" => Box::new(Segments::new(
+            Pose2::default(),
+            vec![
+                Segment::rest(0.4),
+                // The seed paths' ramp (0.16 m), but the motion does not start at t = 0.
+                Segment::ramp_up(RAMP_S, CRUISE_SPEED_M_S, 0.0, 0.0),
+                Segment::constant(3.0, CRUISE_SPEED_M_S, 0.0, 0.0), // 1.2 m
+            ],
+        )),
         _ => return None,
     })
 }
@@ -207,4 +275,14 @@ fn umbmark(ccw: bool) -> Box<dyn Trajectory> {
         parts.push(Box::new(spin));
     }
     Box::new(Sequence::new(parts))
+}
+
+/// Three arcs of constant twist, 2 m: left with radius 0.5 m (0.6 m), right with radius 0.3 m
+/// (0.6 m), left with radius 1 m (0.8 m), at 0.4, 0.3 and 0.5 m/s.
+fn twist_arcs() -> Vec<Segment> {
+    vec![
+        Segment::constant(1.5, 0.4, 0.0, 0.8),
+        Segment::constant(2.0, 0.3, 0.0, -1.0),
+        Segment::constant(1.6, 0.5, 0.0, 0.5),
+    ]
 }

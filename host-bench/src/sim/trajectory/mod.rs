@@ -1,5 +1,5 @@
 //! Trajectories of the body reference point (SPEC §5): the paths of the seed papers and
-//! Borenstein's UMBmark, as exact functions of time.
+//! Borenstein's UMBmark, and our own constant-twist segments, as exact functions of time.
 //!
 //! A [`Trajectory`] gives the pose and the body twist at every instant of `[0, duration]`,
 //! consistently (the twist is the exact derivative of the pose, heading included), so that the
@@ -15,8 +15,8 @@
 //!   are scaled so that their length is exactly the paper's number.
 //! * **Speed along the path** is a smooth time-scaling `s(t)`: the speed rises from rest to the
 //!   cruise speed with a smoothstep (`v·(3x² − 2x³)`, so the acceleration is continuous and
-//!   zero at both ends of the ramp), cruises, and comes down the same way. Every trajectory
-//!   starts and ends at rest; speeds are continuous everywhere.
+//!   zero at both ends of the ramp), cruises, and comes down the same way. Every seed
+//!   trajectory starts and ends at rest; speeds are continuous everywhere.
 //! * **Heading** is either the path tangent (feasible for a differential-drive robot: no
 //!   sideways velocity; see [`Drive`]) or, for omni robots, a start heading plus a change that
 //!   is proportional to the distance travelled (linear in time while cruising — seed 000's
@@ -24,9 +24,15 @@
 //!   stays continuous).
 //! * Polygons (squares) stop at every corner; a differential robot turns in place there with
 //!   the same smooth profile on the heading. So twists are continuous at every hand-over.
+//! * **Ours** (`segments`, paper "ours"): a smooth rest-to-rest curve is one special case, so
+//!   these move at a constant body twist per segment and change it abruptly at the joints
+//!   (the twist jumps; [`Trajectory::twist_before`] gives its value just before a joint). The
+//!   `twist-*` ones move from t = 0 to the end; the `rest-then-*` ones stand still first, then
+//!   start abruptly or with the smoothstep ramp. Each segment's pose is the exact SE(2)
+//!   exponential of its twist, chained.
 //!
 //! All trajectories start at the pose (0, 0, 0). Cruise 0.4 m/s, ramps of 0.8 s; turns in
-//! place at π/2 rad/s with 0.5 s ramps.
+//! place at π/2 rad/s with 0.5 s ramps. Ours: 0.3–0.5 m/s, turns up to 2 rad/s.
 //!
 //! | name | drive | length | duration |
 //! |---|---|---|---|
@@ -40,13 +46,19 @@
 //! | `seed002-diagonal` (to (1, 1) m, heading fixed) | holonomic | 1.414 m | 4.34 s |
 //! | `seed002-circle` (radius 0.5 m) | differential | 3.14 m | 8.65 s |
 //! | `umbmark-cw`, `umbmark-ccw` (4 m square, turns in place) | differential | 16 m | 49.20 s |
+//! | `twist-arcs` (arcs of radius 0.5 m left, 0.3 m right, 1 m left) | differential | 2 m | 5.10 s |
+//! | `twist-sideways-spin` (sideways, spin, diagonal turning, reversed) | holonomic | 1.993 m | 6.00 s |
+//! | `twist-s-spin-reverse` (arc left, arc right, spin, straight back) | differential | 1.80 m | 6.00 s |
+//! | `rest-then-arcs` (0.5 s at rest, then `twist-arcs`) | differential | 2 m | 5.60 s |
+//! | `rest-then-smooth-line` (0.4 s at rest, 0.8 s ramp, cruise) | differential | 1.36 m | 4.20 s |
 //!
 //! The papers give no control points, square sizes or circle radius; those are ours (the
 //! lengths are the papers').
 //!
 //! The parts: `catalogue` names and builds every trajectory; `motion` drives a path (or turns
 //! in place) over time; `path` holds the paths by arc length (lines, arcs, Bézier curves, the
-//! figure-eight); `profile` is the speed ramp; `quadrature` the Gauss–Legendre rule.
+//! figure-eight); `profile` is the speed ramp; `segments` the constant-twist motions;
+//! `quadrature` the Gauss–Legendre rule.
 
 use std::f64::consts::FRAC_PI_2;
 
@@ -60,6 +72,7 @@ mod motion;
 mod path;
 mod profile;
 mod quadrature;
+mod segments;
 
 /// A smooth motion of the body reference point, for `t` in `[0, duration()]` seconds.
 pub trait Trajectory {
@@ -70,9 +83,17 @@ pub trait Trajectory {
     /// Body-frame twist (v_x forward, v_y left, ω counter-clockwise) at time `t`: the exact
     /// derivative of [`pose`](Self::pose).
     fn twist(&self, t: f64) -> Twist;
+    /// The twist just before `t`: its limit from the left. It differs from
+    /// [`twist`](Self::twist) (which is the value from the right, that of the part starting at
+    /// `t`) only at a breakpoint where the twist jumps (between constant-twist segments).
+    /// Default: `twist(t)`, for motions whose twist is continuous.
+    fn twist_before(&self, t: f64) -> Twist {
+        self.twist(t)
+    }
     /// Instants in `(0, duration)` where the motion is only finitely smooth (a speed ramp
-    /// starts or ends, one part hands over to the next). The twist is analytic between them;
-    /// the tick generator starts a new integration interval at each. Default: none.
+    /// starts or ends, one part hands over to the next, the twist jumps). The twist is
+    /// analytic between them; the tick generator starts a new integration interval at each.
+    /// Default: none.
     fn breakpoints(&self) -> Vec<f64> {
         Vec::new()
     }
@@ -93,7 +114,7 @@ pub enum Drive {
 pub struct Named {
     pub name: &'static str,
     pub description: &'static str,
-    /// Where it comes from, e.g. "seed 000".
+    /// Where it comes from, e.g. "seed 000"; "ours" for the trajectories no paper has.
     pub paper: &'static str,
     pub drive: Drive,
 }

@@ -105,7 +105,8 @@ impl Trajectory for Turn {
     }
 }
 
-/// Motions one after the other; each must start where and how (at rest) the previous ended.
+/// Motions one after the other; each must start where the previous ended (the seed polygons
+/// hand over at rest, so their twist is continuous too).
 pub(super) struct Sequence {
     parts: Vec<Box<dyn Trajectory>>,
     starts: Vec<f64>,
@@ -144,6 +145,11 @@ impl Trajectory for Sequence {
     fn twist(&self, t: f64) -> Twist {
         let (p, t) = self.part(t);
         p.twist(t)
+    }
+    fn twist_before(&self, t: f64) -> Twist {
+        // The part that ends at `t` when `t` is a hand-over.
+        let k = self.starts.partition_point(|&s| s < t).max(1) - 1;
+        self.parts[k].twist_before(t - self.starts[k])
     }
     fn breakpoints(&self) -> Vec<f64> {
         let mut b = Vec::new();
