@@ -68,9 +68,14 @@ enum Command {
     /// Every seed case, every sensor mode, all four odometry methods side by side, with the
     /// papers' reported figures.
     Accuracy {
-        /// Print {"cases":[{case, robot, mode, path_length_m, algorithms:[...]}...]}.
+        /// Print {"cases":[{case, robot, mode, path_length_m, seeds, phase, algorithms:[{name,
+        /// final_error_m, median_error_m, max_error_m: {median, p95, max}}...]}...]}.
         #[arg(long)]
         json: bool,
+        /// Power-on seeds per case: each runs with every encoder at a random point inside
+        /// its count; figures are median, p95 and max over the seeds.
+        #[arg(long, default_value_t = host_bench::eval::accuracy::DEFAULT_SEEDS)]
+        seeds: u64,
         /// Write an SVG per case and mode (true path and each method's path; error against
         /// distance) and each method's track (truth, estimate, error per truth row) as CSV.
         #[arg(long, value_name = "DIR")]
@@ -217,7 +222,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Accuracy { json, out } => cli::analyse::run_accuracy(json, out),
+        Command::Accuracy { json, out, seeds } => cli::analyse::run_accuracy(json, out, seeds),
         Command::Generate(a) => cli::generate::run_generate(a),
         Command::Replay {
             robot,

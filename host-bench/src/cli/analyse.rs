@@ -2,15 +2,16 @@
 
 use std::path::PathBuf;
 
-pub fn run_accuracy(json: bool, out: Option<PathBuf>) -> anyhow::Result<()> {
+pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Result<()> {
     use host_bench::eval::accuracy;
-    let total = (accuracy::cases().len() * accuracy::modes().len()) as u64;
+    anyhow::ensure!(seeds >= 1, "--seeds must be at least 1");
+    let total = accuracy::cases().len() as u64 * seeds;
     // indicatif draws only when stderr is a terminal: CI logs stay clean.
     let bar = indicatif::ProgressBar::new(total).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let results = accuracy::run(|label| {
+    let results = accuracy::run(seeds, |label| {
         bar.set_message(label.to_string());
         bar.inc(1);
     })?;
@@ -20,14 +21,23 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
         for r in &results {
             let mode = r.mode.replace('@', "-");
-            for s in &r.algorithms {
+            // The tracks and the picture of seed 0; the figures cover every seed.
+            let first: Vec<_> = r
+                .algorithms
+                .iter()
+                .filter_map(|m| m.runs.first().cloned())
+                .collect();
+            for s in &first {
                 s.write_track(&dir.join(format!("{}-{}-{mode}-{}.csv", r.case, r.robot, s.name)))?;
             }
-            let title = format!("{} on {} ({}): paths and error", r.case, r.robot, r.mode);
+            let title = format!(
+                "{} on {} ({}, seed 0): paths and error",
+                r.case, r.robot, r.mode
+            );
             host_bench::eval::report::write_case_svg(
                 &dir.join(format!("{}-{}-{mode}.svg", r.case, r.robot)),
                 &title,
-                &r.algorithms,
+                &first,
             )?;
         }
     }

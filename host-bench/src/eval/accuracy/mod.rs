@@ -1,20 +1,35 @@
-//! `host-bench accuracy`: every seed case, every sensor mode, all four odometry methods, side
-//! by side, with the paper's reported figure beside each case (SPEC §5, §6).
+//! `host-bench accuracy`: every case, every sensor mode, all four odometry methods, side by
+//! side, over many power-on phases, with the paper's reported figure beside each seed case
+//! (SPEC §5, §6).
 //!
-//! Each case generates the exact tick stream of a seed robot along a seed trajectory
-//! ([`crate::sim::generate`]) in memory and replays it ([`crate::eval::replay`]) with ideal encoders, in
-//! tick-timestamp mode and as counters sampled at 1 kHz and 10 kHz. The robot files are built
+//! Each case generates the exact tick stream of a robot along a trajectory
+//! ([`crate::sim::generate`]) in memory, once per power-on seed (every encoder starts at a
+//! random point inside its count, as a real one does), and replays it ([`crate::eval::replay`])
+//! in tick-timestamp mode and as counters sampled at 1 kHz and 10 kHz. Each method's final,
+//! median and maximum errors are reported as their median, p95 and max over the seeds
+//! ([`spread`]); the criteria ([`table`]) hold over every seed. The robot files are built
 //! into the binary, so the command runs from anywhere.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 use anyhow::{Context, Result};
 use serde::Serialize;
 
 use crate::eval::replay::{self, Mode, Score};
 use crate::formats::robot::Robot;
-use crate::sim::generate::{generate, GenerateOptions};
-use crate::sim::trajectory;
+use crate::sim::generate::{generate, GenerateOptions, PowerOnPhase};
+use crate::sim::trajectory::{self, Trajectory};
+
+pub mod spread;
+pub mod table;
+
+pub use spread::{MethodSpread, Spread};
+pub use table::{median_advantage, summary, table};
+
+/// Power-on seeds per case unless told otherwise.
+pub const DEFAULT_SEEDS: u64 = 8;
 
 /// A seed case: a trajectory, the robot that drives it, and what the paper reports.
 #[derive(Clone, Copy, Debug)]
@@ -23,18 +38,39 @@ pub struct Case {
     /// File name in `robots/`.
     pub robot: &'static str,
     pub paper_figure: &'static str,
+    /// How the motion starts: what the power-on phase estimate can know.
+    pub start: Start,
+}
+
+/// How a case's motion starts, which decides what its first ticks can tell (docs/odometry.md,
+/// "Where a wheel starts inside its count").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Start {
+    /// Moving from power-on, or starting from rest with a continuous speed: each wheel's first
+    /// ticks place it.
+    Placed,
+    /// At rest, then at full speed at once: no wheel can tell when it started; they are
+    /// placed together, to within half a count of the fastest wheel ([`abrupt_start_bound`]).
+    AbruptAfterRest,
 }
 
 const SEED000: &str = "seed 000: <= 1.5 mm (0.18 %) on 80 cm paths, Δ 0.1-0.8 mm";
+const OURS: &str = "ours: abrupt twists, other layouts";
 
-/// Every case of SPEC §5. Holonomic paths go to seed 000's omni triangle, the others to seed
-/// 001's differential drive (UMBmark is a differential-drive benchmark).
+/// Every case of SPEC §5 (holonomic paths on seed 000's omni triangle, the others on seed
+/// 001's differential drive; UMBmark is a differential-drive benchmark), then ours: motion
+/// made of constant twists that change abruptly, starts after a rest, and layouts that are not
+/// the seeds' (a skewed 3-wheel omni, a 4-wheel least-squares layout, a wider axle off the
+/// reference point).
 pub fn cases() -> Vec<Case> {
     let c = |trajectory, robot, paper_figure| Case {
         trajectory,
         robot,
         paper_figure,
+        start: Start::Placed,
     };
+    let ours = |trajectory, robot| c(trajectory, robot, OURS);
     vec![
         c("seed000-line", "seed000-0.1mm.toml", SEED000),
         c("seed000-bezier-0deg", "seed000-0.1mm.toml", SEED000),
@@ -83,6 +119,23 @@ pub fn cases() -> Vec<Case> {
             "seed001.toml",
             "UMBmark: no figure in the seeds",
         ),
+        ours("twist-arcs", "diff-wide.toml"),
+        ours("twist-s-spin-reverse", "seed001.toml"),
+        ours("twist-s-spin-reverse", "diff-wide.toml"),
+        ours("twist-sideways-spin", "skewed3.toml"),
+        ours("twist-sideways-spin", "omni4-ls.toml"),
+        ours("twist-sideways-spin", "seed000-0.4mm.toml"),
+        ours("seed000-bezier-180deg", "skewed3.toml"),
+        ours("seed002-square", "omni4-ls.toml"),
+        ours("rest-then-smooth-line", "skewed3.toml"),
+        Case {
+            start: Start::AbruptAfterRest,
+            ..ours("rest-then-arcs", "diff-wide.toml")
+        },
+        Case {
+            start: Start::AbruptAfterRest,
+            ..ours("rest-then-arcs", "seed001.toml")
+        },
     ]
 }
 
@@ -97,15 +150,18 @@ pub fn modes() -> [Mode; 3] {
 
 fn robot_text(file: &str) -> Option<&'static str> {
     Some(match file {
-        "seed000-0.1mm.toml" => include_str!("../../../robots/seed000-0.1mm.toml"),
-        "seed000-0.4mm.toml" => include_str!("../../../robots/seed000-0.4mm.toml"),
-        "seed000-0.8mm.toml" => include_str!("../../../robots/seed000-0.8mm.toml"),
-        "seed001.toml" => include_str!("../../../robots/seed001.toml"),
+        "seed000-0.1mm.toml" => include_str!("../../../../robots/seed000-0.1mm.toml"),
+        "seed000-0.4mm.toml" => include_str!("../../../../robots/seed000-0.4mm.toml"),
+        "seed000-0.8mm.toml" => include_str!("../../../../robots/seed000-0.8mm.toml"),
+        "seed001.toml" => include_str!("../../../../robots/seed001.toml"),
+        "skewed3.toml" => include_str!("../../../../robots/skewed3.toml"),
+        "omni4-ls.toml" => include_str!("../../../../robots/omni4-ls.toml"),
+        "diff-wide.toml" => include_str!("../../../../robots/diff-wide.toml"),
         _ => return None,
     })
 }
 
-/// One case in one mode.
+/// One case in one mode, over every seed.
 #[derive(Clone, Debug, Serialize)]
 pub struct CaseResult {
     pub case: String,
@@ -113,13 +169,33 @@ pub struct CaseResult {
     pub mode: String,
     pub path_length_m: f64,
     pub paper: String,
-    pub algorithms: Vec<Score>,
+    /// Power-on seeds run (0, 1, ... seeds − 1), and how the phases were drawn.
+    pub seeds: u64,
+    pub phase: String,
+    pub start: Start,
+    pub algorithms: Vec<MethodSpread>,
+    /// Over the seeds, the smallest ratio of the best baseline's median error to `exact`'s
+    /// (each seed compared with itself), where that baseline's exceeds 10 µm on every seed.
+    pub exact_advantage_worst_seed: Option<f64>,
+    /// Every wheel unknown by up to a count until its first ticks: the position error that
+    /// stands for (Σ_j of the largest body displacement a count of wheel j gives), the floor
+    /// of every method's maximum error on a coarse robot.
+    pub start_bound_m: f64,
+    /// With [`Start::AbruptAfterRest`]: the bound on the final error that placing the wheels
+    /// together leaves ([`abrupt_start_bound`]).
+    pub abrupt_start_bound_m: Option<f64>,
     /// Largest distance and heading difference between fixed-point `exact` and its f64 twin
-    /// over every truth row (the documented tolerance is 1 µm and 1e-6 rad).
+    /// over every truth row of every seed (the documented tolerance is 1 µm and 1e-6 rad).
     pub exact_vs_f64_m: f64,
     pub exact_vs_f64_rad: f64,
     /// Methods that cannot run here (e.g. `timing` on sampled counts), with the reason.
     pub skipped: Vec<Skipped>,
+}
+
+impl CaseResult {
+    pub fn method(&self, name: &str) -> Option<&MethodSpread> {
+        self.algorithms.iter().find(|s| s.name == name)
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -128,147 +204,227 @@ pub struct Skipped {
     pub reason: String,
 }
 
-/// Run every case in every mode. `progress` is called after each (case, mode) with a label.
-pub fn run(mut progress: impl FnMut(&str)) -> Result<Vec<CaseResult>> {
-    let mut results = Vec::new();
-    for case in cases() {
+/// One seed of one case in one mode.
+struct Run {
+    scores: Vec<Score>,
+    skipped: Vec<Skipped>,
+    vs_f64: (f64, f64),
+}
+
+/// Run every case in every mode over `seeds` power-on seeds (on every core). `progress` is
+/// called after each (case, seed) with a label.
+pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResult>> {
+    let seeds = seeds.max(1);
+    let cases = cases();
+    let mut loaded = Vec::new();
+    for case in &cases {
         let text =
             robot_text(case.robot).with_context(|| format!("no built-in robot {}", case.robot))?;
         let robot = Robot::parse(text, Path::new(&format!("robots/{}", case.robot)))?;
-        let traj = trajectory::build(case.trajectory)
+        trajectory::build(case.trajectory)
             .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
-        let stream = generate(
-            &robot,
-            Some(&format!("../robots/{}", case.robot)),
-            traj.as_ref(),
-            &GenerateOptions::default(),
-        )
-        .with_context(|| format!("generating {} for {}", case.trajectory, robot.name))?;
-        for mode in modes() {
-            let mut algorithms = Vec::new();
-            let mut skipped = Vec::new();
-            for name in replay::ALGORITHMS {
-                match replay::replay(&robot, &stream, name, mode) {
-                    Ok(s) => algorithms.push(s),
-                    Err(e) => skipped.push(Skipped {
-                        name: name.to_string(),
-                        reason: format!("{e:#}"),
-                    }),
+        loaded.push(robot);
+    }
+    // Jobs are (case, seed); each generates its stream and replays it in every mode.
+    let jobs = cases.len() * seeds as usize;
+    let next = AtomicUsize::new(0);
+    let done: Mutex<Vec<Option<Result<Vec<Run>>>>> = Mutex::new((0..jobs).map(|_| None).collect());
+    let progress = Mutex::new(progress);
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(jobs);
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| loop {
+                let job = next.fetch_add(1, Ordering::Relaxed);
+                if job >= jobs {
+                    break;
                 }
-            }
-            let path_length_m = algorithms.first().map_or(0.0, |s| s.path_length_m);
-            let (mut exact_vs_f64_m, mut exact_vs_f64_rad) = (0.0f64, 0.0f64);
-            if let Some(fixed) = algorithms.iter().find(|s| s.name == "exact") {
-                let twin = replay::replay(&robot, &stream, replay::ORACLE, mode)?;
-                for ((_, a, _), (_, b, _)) in fixed.track.iter().zip(&twin.track) {
-                    exact_vs_f64_m = exact_vs_f64_m.max(a.distance_to(*b));
-                    exact_vs_f64_rad =
-                        exact_vs_f64_rad.max(robot_math::se2::wrap_angle(a.theta - b.theta).abs());
+                let (c, seed) = (job / seeds as usize, job as u64 % seeds);
+                let out = run_seed(&cases[c], &loaded[c], seed);
+                if let Ok(mut d) = done.lock() {
+                    d[job] = Some(out);
                 }
-            }
-            results.push(CaseResult {
-                case: case.trajectory.into(),
-                robot: robot.name.clone(),
-                mode: mode.to_string(),
-                path_length_m,
-                exact_vs_f64_m,
-                exact_vs_f64_rad,
-                paper: case.paper_figure.into(),
-                algorithms,
-                skipped,
+                if let Ok(mut p) = progress.lock() {
+                    (*p)(&format!(
+                        "{} on {} (seed {seed})",
+                        cases[c].trajectory, loaded[c].name
+                    ));
+                }
             });
-            progress(&format!("{} on {} ({mode})", case.trajectory, robot.name));
+        }
+    });
+    let mut done = done
+        .into_inner()
+        .map_err(|_| anyhow::anyhow!("a worker panicked"))?;
+    let mut results = Vec::new();
+    for (c, case) in cases.iter().enumerate() {
+        let mut per_seed = Vec::new();
+        for slot in &mut done[c * seeds as usize..(c + 1) * seeds as usize] {
+            per_seed.push(slot.take().context("a worker stopped early")??);
+        }
+        let robot = &loaded[c];
+        let traj = trajectory::build(case.trajectory).context("built above")?;
+        for (m, mode) in modes().into_iter().enumerate() {
+            let runs: Vec<&Run> = per_seed.iter().map(|r| &r[m]).collect();
+            results.push(aggregate(case, robot, traj.as_ref(), mode, seeds, &runs)?);
         }
     }
     Ok(results)
 }
 
-/// The side-by-side table.
-pub fn table(results: &[CaseResult]) -> String {
-    let mut out = String::new();
-    let names = replay::ALGORITHMS;
-    out.push_str(&format!(
-        "{:<24} {:<14} {:<16} {:>8}",
-        "case", "robot", "mode", "path m"
-    ));
-    for n in names {
-        out.push_str(&format!(" {:>19}", format!("{n} final/max mm")));
-    }
-    out.push_str("  paper\n");
-    for r in results {
-        out.push_str(&format!(
-            "{:<24} {:<14} {:<16} {:>8.3}",
-            r.case, r.robot, r.mode, r.path_length_m
-        ));
-        for n in names {
-            let cell = match r.algorithms.iter().find(|s| s.name == *n) {
-                Some(s) => format!("{:.4}/{:.4}", s.final_error_m * 1e3, s.max_error_m * 1e3),
-                None => "-".into(),
-            };
-            out.push_str(&format!(" {cell:>19}"));
-        }
-        out.push_str(&format!(
-            "  {}\n",
-            if r.mode == "timestamps" {
-                r.paper.as_str()
-            } else {
-                ""
+/// Seed `seed` of `case`: its stream, replayed in every mode.
+fn run_seed(case: &Case, robot: &Robot, seed: u64) -> Result<Vec<Run>> {
+    let traj = trajectory::build(case.trajectory)
+        .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
+    let opts = GenerateOptions {
+        phase: PowerOnPhase::Random { seed },
+        ..GenerateOptions::default()
+    };
+    let stream = generate(
+        robot,
+        Some(&format!("../robots/{}", case.robot)),
+        traj.as_ref(),
+        &opts,
+    )
+    .with_context(|| {
+        format!(
+            "generating {} for {} (seed {seed})",
+            case.trajectory, robot.name
+        )
+    })?;
+    let mut out = Vec::new();
+    for mode in modes() {
+        let (mut scores, mut skipped) = (Vec::new(), Vec::new());
+        for name in replay::ALGORITHMS {
+            match replay::replay(robot, &stream, name, mode) {
+                Ok(s) => scores.push(s),
+                Err(e) => skipped.push(Skipped {
+                    name: name.to_string(),
+                    reason: format!("{e:#}"),
+                }),
             }
-        ));
+        }
+        let mut vs_f64 = (0.0f64, 0.0f64);
+        if let Some(fixed) = scores.iter().find(|s| s.name == "exact") {
+            let twin = replay::replay(robot, &stream, replay::ORACLE, mode)?;
+            for ((_, a, _), (_, b, _)) in fixed.track.iter().zip(&twin.track) {
+                vs_f64.0 = vs_f64.0.max(a.distance_to(*b));
+                vs_f64.1 = vs_f64
+                    .1
+                    .max(robot_math::se2::wrap_angle(a.theta - b.theta).abs());
+            }
+        }
+        out.push(Run {
+            scores,
+            skipped,
+            vs_f64,
+        });
     }
-    out.push_str(&summary(results));
-    out
+    Ok(out)
 }
 
-/// For each tick-timestamp row where the best baseline's median error exceeds 10 µm (below
-/// that every method is near-exact and there is nothing to separate): the row and how many
-/// times `exact`'s median error is below that baseline's.
-pub fn median_advantage(results: &[CaseResult]) -> Vec<(&CaseResult, f64)> {
-    results
+fn aggregate(
+    case: &Case,
+    robot: &Robot,
+    traj: &dyn Trajectory,
+    mode: Mode,
+    seeds: u64,
+    runs: &[&Run],
+) -> Result<CaseResult> {
+    let first = runs.first().context("no seeds")?;
+    let algorithms: Vec<MethodSpread> = first
+        .scores
         .iter()
-        .filter(|r| r.mode == "timestamps")
-        .filter_map(|r| {
-            let exact = r.algorithms.iter().find(|s| s.name == "exact")?;
-            let best = r
-                .algorithms
-                .iter()
-                .filter(|s| s.name != "exact")
-                .map(|s| s.median_error_m)
-                .fold(f64::MAX, f64::min);
-            (best > 10e-6).then(|| (r, best / exact.median_error_m.max(1e-12)))
+        .map(|s| {
+            MethodSpread::of(
+                runs.iter()
+                    .filter_map(|r| r.scores.iter().find(|x| x.name == s.name).cloned())
+                    .collect(),
+            )
         })
-        .collect()
+        .collect();
+    let path_length_m = first.scores.first().map_or(0.0, |s| s.path_length_m);
+    // Each seed against itself: the best baseline's median over exact's.
+    let mut advantage: Option<f64> = None;
+    let mut all_measurable = true;
+    for r in runs {
+        let exact = r.scores.iter().find(|s| s.name == "exact");
+        let best = r
+            .scores
+            .iter()
+            .filter(|s| s.name != "exact")
+            .map(|s| s.median_error_m)
+            .fold(f64::MAX, f64::min);
+        if let Some(e) = exact {
+            all_measurable &= best > 10e-6;
+            let ratio = best / e.median_error_m.max(1e-12);
+            advantage = Some(advantage.map_or(ratio, |a: f64| a.min(ratio)));
+        }
+    }
+    let (dq, _) = quantisation(robot)?;
+    Ok(CaseResult {
+        case: case.trajectory.into(),
+        robot: robot.name.clone(),
+        mode: mode.to_string(),
+        path_length_m,
+        paper: case.paper_figure.into(),
+        seeds,
+        phase: "random".into(),
+        start: case.start,
+        algorithms,
+        exact_advantage_worst_seed: advantage.filter(|_| all_measurable),
+        start_bound_m: dq,
+        abrupt_start_bound_m: (case.start == Start::AbruptAfterRest)
+            .then(|| abrupt_start_bound(robot, traj, path_length_m))
+            .transpose()?,
+        exact_vs_f64_m: runs.iter().map(|r| r.vs_f64.0).fold(0.0, f64::max),
+        exact_vs_f64_rad: runs.iter().map(|r| r.vs_f64.1).fold(0.0, f64::max),
+        skipped: first.skipped.clone(),
+    })
 }
 
-/// The headline comparisons, from the tick-timestamp rows.
-pub fn summary(results: &[CaseResult]) -> String {
-    let ts: Vec<&CaseResult> = results.iter().filter(|r| r.mode == "timestamps").collect();
-    let exact = |r: &CaseResult| r.algorithms.iter().find(|s| s.name == "exact").cloned();
-    let worst_share = ts
-        .iter()
-        .filter_map(|r| exact(r).map(|e| e.final_error_m / r.path_length_m))
-        .fold(0.0f64, f64::max);
-    let mut ratios: Vec<f64> = median_advantage(results)
-        .into_iter()
-        .map(|(_, ratio)| ratio)
-        .collect();
-    ratios.sort_by(f64::total_cmp);
-    let (dev_m, dev_rad) = results.iter().fold((0.0f64, 0.0f64), |(m, r), c| {
-        (m.max(c.exact_vs_f64_m), r.max(c.exact_vs_f64_rad))
-    });
-    let mut out = format!(
-        "\nexact, tick time stamps: final error at most {:.4} % of the path on every case\n\
-         exact, fixed point vs its f64 twin: at most {:.3} um and {:.1e} rad apart, every case and mode\n",
-        worst_share * 100.0,
-        dev_m * 1e6,
-        dev_rad
-    );
-    if let (Some(lo), Some(mid)) = (ratios.first(), ratios.get(ratios.len() / 2)) {
-        out.push_str(&format!(
-            "exact, tick time stamps: median error {lo:.0}x (worst case) to {mid:.0}x (median case) below the best \
-             baseline, on the {} cases where that baseline's median exceeds 10 um\n",
-            ratios.len()
-        ));
+/// `(dq, hq)`: the largest body displacement (m) and turn (rad) that one count of every
+/// wheel at once can stand for, Σ_j over the wheels (the pseudo-inverse times the travel per
+/// count).
+pub fn quantisation(robot: &Robot) -> Result<(f64, f64)> {
+    let solver = robot_math::wheelset::WheelSolver::new(&robot.encoder_wheels())
+        .map_err(|e| anyhow::anyhow!("robot {}: {e:?}", robot.name))?;
+    let p = solver.pseudo_inverse();
+    let (mut dq, mut hq) = (0.0, 0.0);
+    for (j, e) in robot.encoders.iter().enumerate() {
+        let k = e.metres_per_count;
+        dq += (p[0][j] * k).abs().max((p[1][j] * k).abs());
+        hq += (p[2][j] * k).abs();
     }
-    out
+    Ok((dq, hq))
+}
+
+/// What placing the wheels together leaves after an abrupt start from rest: every wheel's
+/// error is its own speed times one common time error δt, at most half the fastest wheel's
+/// first interval (1 / (2 f_max), f_max its counts per second), so the pose is the robot's own
+/// pose δt earlier or later: off by |v|·δt along the path and turned by |ω|·δt, which the
+/// `path` after it carries as |ω|·δt·path. Bound: (|v| + |ω|·path)·δt, with the twist right
+/// after the start.
+pub fn abrupt_start_bound(robot: &Robot, traj: &dyn Trajectory, path: f64) -> Result<f64> {
+    let mut breaks = traj.breakpoints();
+    breaks.sort_by(f64::total_cmp);
+    let moving = |w: robot_math::se2::Twist| w.vx != 0.0 || w.vy != 0.0 || w.omega != 0.0;
+    let twist = std::iter::once(0.0)
+        .chain(breaks)
+        .map(|b| traj.twist(b + 1e-9))
+        .find(|&w| moving(w))
+        .context("the trajectory never moves")?;
+    let f_max = robot
+        .encoder_wheels()
+        .iter()
+        .zip(&robot.encoders)
+        .map(|(w, e)| {
+            let r = w.row();
+            (r[0] * twist.vx + r[1] * twist.vy + r[2] * twist.omega).abs() / e.metres_per_count
+        })
+        .fold(0.0, f64::max);
+    anyhow::ensure!(f_max > 0.0, "no encoder turns at the start");
+    let dt = 0.5 / f_max;
+    Ok((twist.vx.hypot(twist.vy) + twist.omega.abs() * path) * dt)
 }
