@@ -53,9 +53,10 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
         /// Where the two measuring-wheel encoders stand within their counts at power-on,
-        /// fractions of a count in [0, 1) [default: drawn from the seed]. The slave assumes
-        /// 0 (each wheel on an edge); their difference tilts the carriage heading it
-        /// integrates by (P1 - P0) counts over the wheel base (docs/odometry.md).
+        /// fractions of a count in [0, 1) [default: drawn from the seed]. With time stamps the
+        /// slave places each wheel from its first ticks; reading counters it cannot, and
+        /// their difference tilts the carriage heading by (P1 - P0) counts over the wheel base
+        /// (docs/odometry.md).
         #[arg(long, value_name = "P0,P1", value_parser = parse_phase)]
         encoder_phase: Option<[f64; 2]>,
         /// Fault injection: cut the slave's power at this simulated time (seconds).

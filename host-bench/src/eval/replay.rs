@@ -315,8 +315,11 @@ fn drive(
                         robot.name
                     );
                 }
+                let placing = wheels[e].placing();
                 wheels[e].tick(t, step);
-                robot_math::ticks::place_together(&mut wheels[..n]);
+                if placing {
+                    robot_math::ticks::place_together(&mut wheels[..n]);
+                }
                 est.tick(t, e, step);
                 ticked = true;
             }

@@ -23,7 +23,7 @@ pub fn summary_text(s: &Summary) -> String {
          simulated       {sim:.3} s in {wall:.3} s wall ({speed:.0}x real time)\n\
          path length     {path:.3} m\n\
          slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
-         encoders        {p0:.3} and {p1:.3} of a count past an edge at power-on (the slave assumes 0)\n\
+         encoders        {p0:.3} and {p1:.3} of a count past an edge at power-on\n\
          robot           ended at ({x:.4}, {y:.4}) m, {dg:.1} mm from the goal{arr}\n\
          SPI frames      {spi} exchanged, {spir} rejected\n\
          serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",

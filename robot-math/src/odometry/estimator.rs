@@ -290,18 +290,20 @@ impl Odometry {
         {
             return false;
         }
-        let placed = match (self.trackers.get_mut(encoder), self.counts.get_mut(encoder)) {
-            (Some(t), Some(c)) => {
-                t.tick(t_ns, step);
-                *c = t.count();
-                true
-            }
-            _ => false,
+        let (Some(t), Some(c)) = (self.trackers.get_mut(encoder), self.counts.get_mut(encoder))
+        else {
+            return false;
         };
-        if let Some(wheels) = self.trackers.get_mut(..self.layout.encoders()) {
-            place_together(wheels);
+        let placing = t.placing();
+        t.tick(t_ns, step);
+        *c = t.count();
+        // Only a wheel's first ticks move where the wheels are placed: later ticks skip this.
+        if placing {
+            if let Some(wheels) = self.trackers.get_mut(..self.layout.encoders()) {
+                place_together(wheels);
+            }
         }
-        placed
+        true
     }
 
     /// The encoders' cumulative whole counts ([`SensorKind::Counts`]; ignored with ticks).

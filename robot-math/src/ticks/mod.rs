@@ -166,6 +166,12 @@ impl TickTracker {
         self.count
     }
 
+    /// True while the wheel's first ticks are still being gathered: only then can a tick
+    /// change where it (or, through [`place_together`], another wheel) is placed.
+    pub fn placing(&self) -> bool {
+        (self.first_len as usize) < self.first.len()
+    }
+
     /// Where inside its count the wheel stood at power-on, as far as its ticks tell: Q16
     /// counts in `[0, 1]` (half a count until they tell).
     pub fn phase_q16(&self) -> i64 {
@@ -357,7 +363,8 @@ mod tests {
 /// in every such wheel's window `[t1 − first interval, t1]`. Each is placed as if it started
 /// in the middle of their common window; a wheel's error is then at most half the window at
 /// its own speed, under half a count, and the fastest wheel narrows the window for all.
-/// Call after every tick (it does nothing once every wheel is placed). Integer-only.
+/// Call after a tick of a wheel that was [`placing`](TickTracker::placing) before it: no
+/// other tick changes a window. Integer-only.
 pub fn place_together(trackers: &mut [TickTracker]) {
     let (mut lo, mut hi, mut any) = (0u64, u64::MAX, false);
     for w in trackers.iter().filter_map(TickTracker::start_window) {
