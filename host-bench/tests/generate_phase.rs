@@ -74,27 +74,30 @@ fn fingerprint(stream: &TickStream) -> u64 {
 
 #[test]
 fn zero_reproduces_the_edge_aligned_generator_bit_for_bit() {
-    // Fingerprints of the streams the generator wrote before it had power-on phases (commit
-    // cb2dc06, every encoder on an edge): a body-fixed axle, the omni triangle, and the
-    // carriage with its absolute encoder. `PowerOnPhase::Zero` must give the same rows.
+    // Fingerprints of edge-aligned streams: a body-fixed axle, the omni triangle, and the
+    // carriage with its absolute encoder. `PowerOnPhase::Zero` must give the same rows as the
+    // generator before power-on phases (commit cb2dc06) did, but for the rolled distance now
+    // being the exact integral of the speed interpolant (`generate/cheb.rs`) where it was
+    // 5-point quadrature: against cb2dc06's streams 1, 4 and 311 tick instants of these three
+    // moved by 1 ns (an instant within rounding of a half nanosecond), nothing else.
     for (file, name, events, expected) in [
         (
             "seed001.toml",
             "seed002-circle",
             16574,
-            0xf8c2_1ec2_3965_4cf9u64,
+            0x19a1_2e95_b9b4_64c3u64,
         ),
         (
             "seed000-0.1mm.toml",
             "seed000-bezier-90deg",
             16988,
-            0x2408_5494_7506_f8e3,
+            0xe473_98b6_d716_a42c,
         ),
         (
             "seed004.toml",
             "seed002-square",
             262938,
-            0x1444_f683_94bb_2e4c,
+            0x541e_de87_7b9b_a333,
         ),
     ] {
         let r = robot(file);

@@ -1,11 +1,11 @@
 //! Each encoder's rolled distance, summed interval by interval, and its edge crossings found by
 //! root finding.
 
+use super::cheb::SpeedSeries;
 use super::interp::{Interp, SAMPLES};
 use super::{to_ns, TIME_TOL_S};
 use crate::formats::robot::Robot;
 use crate::formats::tickstream::Event;
-use crate::sim::trajectory::gl5;
 use robot_math::wheel::Wheel;
 
 /// A running sum with Neumaier compensation.
@@ -34,8 +34,61 @@ impl Sum {
     }
 }
 
+/// One encoder's rolling speed over one interval, and the pieces of it between reversals
+/// (on each the wheel rolls one way): nothing here depends on where the encoder powered on.
+pub(super) struct WheelMotion {
+    series: SpeedSeries,
+    pieces: Vec<(f64, f64)>,
+}
+
+impl WheelMotion {
+    /// Every encoder wheel of `wheels` over the interval of `frame` (the twist of the wheels'
+    /// frame).
+    pub(super) fn of(wheels: &[Wheel], frame: &Interp) -> Vec<WheelMotion> {
+        let (t0, t1) = (frame.t[0], frame.t[SAMPLES - 1]);
+        wheels
+            .iter()
+            .map(|wheel| {
+                let row = wheel.row();
+                let speeds = frame
+                    .v
+                    .map(|v| row[0] * v[0] + row[1] * v[1] + row[2] * v[2]);
+                let series = SpeedSeries::new(&frame.t, &speeds);
+                let rate = |t: f64| series.speed(t);
+                // Reversals: where the sign of the speed changes between non-zero samples.
+                let mut splits = Vec::new();
+                let mut last: Option<usize> = None;
+                for k in 0..SAMPLES {
+                    if speeds[k] == 0.0 {
+                        continue;
+                    }
+                    if let Some(l) = last {
+                        if (speeds[l] > 0.0) != (speeds[k] > 0.0) {
+                            splits.push(bisect_sign(
+                                &rate,
+                                frame.t[l],
+                                frame.t[k],
+                                speeds[l] > 0.0,
+                            ));
+                        }
+                    }
+                    last = Some(k);
+                }
+                let mut pieces = Vec::new();
+                let mut a = t0;
+                for b in splits.into_iter().chain(std::iter::once(t1)) {
+                    if b > a {
+                        pieces.push((a, b));
+                        a = b;
+                    }
+                }
+                WheelMotion { series, pieces }
+            })
+            .collect()
+    }
+}
+
 pub(super) struct Ticker {
-    wheels: Vec<Wheel>,
     steps: Vec<f64>,
     /// Where each encoder stood inside its count at power-on, metres (phase × step).
     offsets: Vec<f64>,
@@ -62,7 +115,6 @@ impl Ticker {
             })
             .collect();
         Ticker {
-            wheels: robot.encoder_wheels(),
             rolled: offsets.iter().map(|&hi| Sum { hi, lo: 0.0 }).collect(),
             offsets,
             steps,
@@ -80,41 +132,20 @@ impl Ticker {
             .collect()
     }
 
-    /// Advances every encoder over the interval of `frame` (the twist of the wheels' frame).
-    pub(super) fn interval(&mut self, frame: &Interp) {
-        let (t0, t1) = (frame.t[0], frame.t[SAMPLES - 1]);
-        for i in 0..self.wheels.len() {
-            let row = self.wheels[i].row();
-            let speed = |v: &[f64; 4]| row[0] * v[0] + row[1] * v[1] + row[2] * v[2];
-            let rate = |t: f64| speed(&frame.eval(t));
-            let speeds = frame.v.map(|v| speed(&v));
-            // Reversals: where the sign of the speed changes between non-zero samples.
-            let mut splits = Vec::new();
-            let mut last: Option<usize> = None;
-            for k in 0..SAMPLES {
-                if speeds[k] == 0.0 {
-                    continue;
-                }
-                if let Some(l) = last {
-                    if (speeds[l] > 0.0) != (speeds[k] > 0.0) {
-                        splits.push(bisect_sign(&rate, frame.t[l], frame.t[k], speeds[l] > 0.0));
-                    }
-                }
-                last = Some(k);
-            }
-            let mut a = t0;
-            for b in splits.into_iter().chain(std::iter::once(t1)) {
-                if b > a {
-                    let ds = gl5(a, b, rate);
-                    self.piece(i, &rate, a, b, ds);
-                    a = b;
-                }
+    /// Advances every encoder over one interval, its wheels' motion already worked out
+    /// ([`WheelMotion::of`], shared by every power-on phase of the same trajectory).
+    pub(super) fn interval(&mut self, motion: &[WheelMotion]) {
+        for (i, m) in motion.iter().enumerate() {
+            for &(a, b) in &m.pieces {
+                self.piece(i, &m.series, a, b);
             }
         }
     }
 
-    /// Encoder `i` rolls `ds` monotonically over `[a, b]`: emit its edge crossings.
-    fn piece(&mut self, i: usize, rate: &dyn Fn(f64) -> f64, a: f64, b: f64, ds: f64) {
+    /// Encoder `i` rolls monotonically over `[a, b]`: emit its edge crossings.
+    fn piece(&mut self, i: usize, series: &SpeedSeries, a: f64, b: f64) {
+        let rolled_at_a = series.rolled(a);
+        let ds = series.rolled(b) - rolled_at_a;
         let step = self.steps[i];
         let start = self.rolled[i];
         let mut end = start;
@@ -138,10 +169,10 @@ impl Ticker {
         for m in edges {
             let edge = m as f64 * step;
             let base = start.minus(edge);
-            let g = |t: f64| dir * (base + gl5(a, t, rate));
+            let g = |t: f64| dir * (base + (series.rolled(t) - rolled_at_a));
             let g_lo = if lo == a { dir * base } else { -step };
             let g_hi = dir * (base + ds);
-            let t = find_crossing(&g, &|t| dir * rate(t), (lo, g_lo), (b, g_hi));
+            let t = find_crossing(&g, &|t| dir * series.speed(t), (lo, g_lo), (b, g_hi));
             self.events.push(Event::Tick {
                 t_ns: to_ns(t),
                 encoder: i as u16,

@@ -65,7 +65,6 @@ use std::f64::consts::FRAC_PI_2;
 use robot_math::se2::{Pose2, Twist};
 
 pub use catalogue::{build, catalogue, named};
-pub(crate) use quadrature::gl5;
 
 mod catalogue;
 mod motion;
