@@ -90,25 +90,55 @@ fn exact_with_time_stamps_stays_within_two_ten_thousandths_of_the_path_or_the_st
 }
 
 #[test]
-#[ignore = "issue 8 open: on smooth (jerk-limited) starts the wheels are placed within 0.1 count, \
-            which tilts the heading enough to lose the 10x margin (worst case 0x-3x)"]
 fn while_moving_exact_is_at_least_ten_times_better_than_every_baseline_on_every_seed() {
-    // Median error over each run, each seed against itself, where the best baseline's is
-    // above 10 µm on every seed and each wheel's first ticks can place it.
-    let advantage = accuracy::median_advantage(results());
-    for (c, ratio) in &advantage {
+    // The relative pose error over 0.5 m of path once every wheel is placed (a start error is
+    // one rigid transform of the later path and cancels; drift does not), median over each
+    // run, each seed against itself, where the best baseline's is above 10 µm on every seed.
+    let mut cases = 0;
+    for c in timestamps() {
+        let Some(ratio) = c.exact_moving_advantage_worst_seed else {
+            continue;
+        };
+        cases += 1;
         assert!(
-            *ratio >= 10.0,
-            "{} on {}: exact only {ratio}x below the best baseline on its worst seed",
+            ratio >= 10.0,
+            "{} on {}: exact only {ratio}x below the best baseline while moving on its worst seed",
             c.case,
             c.robot
         );
     }
+    // Seed curves, our twists, other layouts and the starts after a rest all take part.
     assert!(
-        advantage.len() >= 12,
-        "too few cases where the baselines err measurably: {}",
-        advantage.len()
+        cases >= 12,
+        "too few cases where the baselines drift measurably: {cases}"
     );
+}
+
+#[test]
+fn from_power_on_exact_stays_within_the_start_bound_and_beats_the_baselines_on_moving_starts() {
+    // From power-on every figure carries where each wheel stood inside its count. On a start
+    // from rest that is not in the ticks (docs/odometry.md), so the error is bounded by a count
+    // of every wheel carried along the path (dq + path·hq), not by a multiple of a baseline.
+    // Where every wheel is already moving at power-on (our twists, placed within 0.1 s; not
+    // skewed3's, one of whose wheels stands still until the spin) the fit is exact and the 10x
+    // margin holds from power-on too.
+    for c in timestamps() {
+        let e = exact(c).median_error_m.max;
+        assert!(
+            e <= c.start_drift_bound_m,
+            "{} on {}: {e} m",
+            c.case,
+            c.robot
+        );
+    }
+    let moving_at_power_on: Vec<_> = accuracy::median_advantage(results())
+        .into_iter()
+        .filter(|(c, _)| c.case.starts_with("twist-") && c.placed_after_s < Some(0.1))
+        .collect();
+    assert!(moving_at_power_on.len() >= 5);
+    for (c, ratio) in moving_at_power_on {
+        assert!(ratio >= 10.0, "{} on {}: {ratio}x", c.case, c.robot);
+    }
 }
 
 #[test]

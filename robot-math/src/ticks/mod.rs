@@ -42,7 +42,7 @@ pub struct TickTracker {
     start_ns: u64,
     /// The first ticks after power-on while they all go one way (up to four), for the fit
     /// of where inside its count the wheel stood ([`start`]).
-    first: [u64; 4],
+    first: [u64; PLACING_TICKS],
     first_len: u8,
     first_dir: i8,
     /// That position, Q16 counts above the count at power-on (φ ∈ [0, 1]); half a count
@@ -53,6 +53,10 @@ pub struct TickTracker {
 }
 
 /// The interpolated fraction never reaches a whole step: 1 - 2^-16.
+/// A wheel's first ticks in one direction that place it inside its count (fits of degree 1 to
+/// 3 through 2 to 4 of them): after these its position has no start error left to fix.
+pub const PLACING_TICKS: usize = 4;
+
 const MAX_FRACTION: i64 = 0xFFFF;
 /// Where a wheel is taken to stand inside its count before its ticks say: the middle, so the
 /// error is at most half a count either way.
@@ -80,7 +84,7 @@ impl TickTracker {
             prev_interval: None,
             dir: 0,
             start_ns: t_ns,
-            first: [0; 4],
+            first: [0; PLACING_TICKS],
             first_len: 0,
             first_dir: 0,
             phase_q16: UNKNOWN_PHASE_Q16,

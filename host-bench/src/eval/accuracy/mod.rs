@@ -19,9 +19,11 @@ use serde::Serialize;
 
 use crate::eval::replay::{self, Mode, Score};
 use crate::formats::robot::Robot;
-use crate::sim::generate::{generate, GenerateOptions, PowerOnPhase};
+use crate::formats::tickstream::TickStream;
+use crate::sim::generate::{generate_phases, GenerateOptions, PowerOnPhase};
 use crate::sim::trajectory::{self, Trajectory};
 
+pub mod moving;
 pub mod spread;
 pub mod table;
 
@@ -177,10 +179,22 @@ pub struct CaseResult {
     /// Over the seeds, the smallest ratio of the best baseline's median error to `exact`'s
     /// (each seed compared with itself), where that baseline's exceeds 10 µm on every seed.
     pub exact_advantage_worst_seed: Option<f64>,
+    /// The same ratio for the error while moving ([`moving`]: the relative pose error over
+    /// [`moving::SEGMENT_M`] of path, from the instant every wheel is placed), where the best
+    /// baseline's exceeds 10 µm on every seed.
+    pub exact_moving_advantage_worst_seed: Option<f64>,
+    /// The instant every wheel had its first [`robot_math::ticks::PLACING_TICKS`] ticks, s:
+    /// where the error while moving is measured from (latest over the seeds).
+    pub placed_after_s: Option<f64>,
     /// Every wheel unknown by up to a count until its first ticks: the position error that
     /// stands for (Σ_j of the largest body displacement a count of wheel j gives), the floor
     /// of every method's maximum error on a coarse robot.
     pub start_bound_m: f64,
+    /// Every wheel anywhere inside its count at power-on and exact from then on: the pose is off
+    /// by one rigid transform, at most `dq + path·hq` away at the path's end ([`quantisation`]).
+    /// The start of a wheel from rest is not in its ticks (docs/odometry.md), so this is the
+    /// bound on the error from power-on that no placement can beat in general.
+    pub start_drift_bound_m: f64,
     /// With [`Start::AbruptAfterRest`]: the bound on the final error that placing the wheels
     /// together leaves ([`abrupt_start_bound`]).
     pub abrupt_start_bound_m: Option<f64>,
@@ -204,9 +218,15 @@ pub struct Skipped {
     pub reason: String,
 }
 
+/// Every seed of one case, each in every mode.
+type CaseRuns = Vec<Vec<Run>>;
+
 /// One seed of one case in one mode.
 struct Run {
     scores: Vec<Score>,
+    /// Each score's median error while moving ([`moving::median_moving_error`]).
+    moving: Vec<Option<f64>>,
+    placed_after_s: Option<f64>,
     skipped: Vec<Skipped>,
     vs_f64: (f64, f64),
 }
@@ -225,10 +245,11 @@ pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResu
             .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
         loaded.push(robot);
     }
-    // Jobs are (case, seed); each generates its stream and replays it in every mode.
-    let jobs = cases.len() * seeds as usize;
+    // Jobs are cases; each generates its streams for every seed in one pass and replays each
+    // in every mode.
+    let jobs = cases.len();
     let next = AtomicUsize::new(0);
-    let done: Mutex<Vec<Option<Result<Vec<Run>>>>> = Mutex::new((0..jobs).map(|_| None).collect());
+    let done: Mutex<Vec<Option<Result<CaseRuns>>>> = Mutex::new((0..jobs).map(|_| None).collect());
     let progress = Mutex::new(progress);
     let workers = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
@@ -240,14 +261,14 @@ pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResu
                 if job >= jobs {
                     break;
                 }
-                let (c, seed) = (job / seeds as usize, job as u64 % seeds);
-                let out = run_seed(&cases[c], &loaded[c], seed);
+                let c = job;
+                let out = run_case(&cases[c], &loaded[c], seeds);
                 if let Ok(mut d) = done.lock() {
                     d[job] = Some(out);
                 }
                 if let Ok(mut p) = progress.lock() {
                     (*p)(&format!(
-                        "{} on {} (seed {seed})",
+                        "{} on {} ({seeds} seeds)",
                         cases[c].trajectory, loaded[c].name
                     ));
                 }
@@ -259,10 +280,7 @@ pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResu
         .map_err(|_| anyhow::anyhow!("a worker panicked"))?;
     let mut results = Vec::new();
     for (c, case) in cases.iter().enumerate() {
-        let mut per_seed = Vec::new();
-        for slot in &mut done[c * seeds as usize..(c + 1) * seeds as usize] {
-            per_seed.push(slot.take().context("a worker stopped early")??);
-        }
+        let per_seed = done[c].take().context("a worker stopped early")??;
         let robot = &loaded[c];
         let traj = trajectory::build(case.trajectory).context("built above")?;
         for (m, mode) in modes().into_iter().enumerate() {
@@ -273,31 +291,33 @@ pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResu
     Ok(results)
 }
 
-/// Seed `seed` of `case`: its stream, replayed in every mode.
-fn run_seed(case: &Case, robot: &Robot, seed: u64) -> Result<Vec<Run>> {
+/// Seeds `0..seeds` of `case`: their streams, generated in one pass, each replayed in every
+/// mode.
+fn run_case(case: &Case, robot: &Robot, seeds: u64) -> Result<CaseRuns> {
     let traj = trajectory::build(case.trajectory)
         .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
-    let opts = GenerateOptions {
-        phase: PowerOnPhase::Random { seed },
-        ..GenerateOptions::default()
-    };
-    let stream = generate(
+    let phases: Vec<PowerOnPhase> = (0..seeds)
+        .map(|seed| PowerOnPhase::Random { seed })
+        .collect();
+    let streams = generate_phases(
         robot,
         Some(&format!("../robots/{}", case.robot)),
         traj.as_ref(),
-        &opts,
+        &GenerateOptions::default(),
+        &phases,
     )
-    .with_context(|| {
-        format!(
-            "generating {} for {} (seed {seed})",
-            case.trajectory, robot.name
-        )
-    })?;
+    .with_context(|| format!("generating {} for {}", case.trajectory, robot.name))?;
+    streams.iter().map(|s| run_seed(robot, s)).collect()
+}
+
+/// One seed's stream, replayed in every mode.
+fn run_seed(robot: &Robot, stream: &TickStream) -> Result<Vec<Run>> {
+    let placed_after_s = moving::placed_after_s(stream);
     let mut out = Vec::new();
     for mode in modes() {
         let (mut scores, mut skipped) = (Vec::new(), Vec::new());
         for name in replay::ALGORITHMS {
-            match replay::replay(robot, &stream, name, mode) {
+            match replay::replay(robot, stream, name, mode) {
                 Ok(s) => scores.push(s),
                 Err(e) => skipped.push(Skipped {
                     name: name.to_string(),
@@ -307,7 +327,7 @@ fn run_seed(case: &Case, robot: &Robot, seed: u64) -> Result<Vec<Run>> {
         }
         let mut vs_f64 = (0.0f64, 0.0f64);
         if let Some(fixed) = scores.iter().find(|s| s.name == "exact") {
-            let twin = replay::replay(robot, &stream, replay::ORACLE, mode)?;
+            let twin = replay::replay(robot, stream, replay::ORACLE, mode)?;
             for ((_, a, _), (_, b, _)) in fixed.track.iter().zip(&twin.track) {
                 vs_f64.0 = vs_f64.0.max(a.distance_to(*b));
                 vs_f64.1 = vs_f64
@@ -315,8 +335,16 @@ fn run_seed(case: &Case, robot: &Robot, seed: u64) -> Result<Vec<Run>> {
                     .max(robot_math::se2::wrap_angle(a.theta - b.theta).abs());
             }
         }
+        let moving = scores
+            .iter()
+            .map(|s| {
+                placed_after_s.and_then(|t| moving::median_moving_error(s, t, moving::SEGMENT_M))
+            })
+            .collect();
         out.push(Run {
             scores,
+            moving,
+            placed_after_s,
             skipped,
             vs_f64,
         });
@@ -337,32 +365,20 @@ fn aggregate(
         .scores
         .iter()
         .map(|s| {
-            MethodSpread::of(
-                runs.iter()
-                    .filter_map(|r| r.scores.iter().find(|x| x.name == s.name).cloned())
-                    .collect(),
-            )
+            let (scores, moving) = runs
+                .iter()
+                .filter_map(|r| {
+                    let i = r.scores.iter().position(|x| x.name == s.name)?;
+                    Some((r.scores[i].clone(), r.moving[i]))
+                })
+                .unzip();
+            MethodSpread::of(scores, moving)
         })
         .collect();
     let path_length_m = first.scores.first().map_or(0.0, |s| s.path_length_m);
-    // Each seed against itself: the best baseline's median over exact's.
-    let mut advantage: Option<f64> = None;
-    let mut all_measurable = true;
-    for r in runs {
-        let exact = r.scores.iter().find(|s| s.name == "exact");
-        let best = r
-            .scores
-            .iter()
-            .filter(|s| s.name != "exact")
-            .map(|s| s.median_error_m)
-            .fold(f64::MAX, f64::min);
-        if let Some(e) = exact {
-            all_measurable &= best > 10e-6;
-            let ratio = best / e.median_error_m.max(1e-12);
-            advantage = Some(advantage.map_or(ratio, |a: f64| a.min(ratio)));
-        }
-    }
-    let (dq, _) = quantisation(robot)?;
+    let advantage = worst_seed_advantage(runs, |r, i| Some(r.scores[i].median_error_m));
+    let moving_advantage = worst_seed_advantage(runs, |r, i| r.moving[i]);
+    let (dq, hq) = quantisation(robot)?;
     Ok(CaseResult {
         case: case.trajectory.into(),
         robot: robot.name.clone(),
@@ -373,8 +389,14 @@ fn aggregate(
         phase: "random".into(),
         start: case.start,
         algorithms,
-        exact_advantage_worst_seed: advantage.filter(|_| all_measurable),
+        exact_advantage_worst_seed: advantage,
+        exact_moving_advantage_worst_seed: moving_advantage,
+        placed_after_s: runs
+            .iter()
+            .filter_map(|r| r.placed_after_s)
+            .max_by(f64::total_cmp),
         start_bound_m: dq,
+        start_drift_bound_m: dq + path_length_m * hq,
         abrupt_start_bound_m: (case.start == Start::AbruptAfterRest)
             .then(|| abrupt_start_bound(robot, traj, path_length_m))
             .transpose()?,
@@ -382,6 +404,28 @@ fn aggregate(
         exact_vs_f64_rad: runs.iter().map(|r| r.vs_f64.1).fold(0.0, f64::max),
         skipped: first.skipped.clone(),
     })
+}
+
+/// Each seed against itself: the smallest ratio, over the seeds, of the best baseline's
+/// `error` to `exact`'s. `None` unless on every seed both are known and the best baseline's
+/// exceeds 10 µm (below that every method is near-exact and a ratio says nothing).
+fn worst_seed_advantage(runs: &[&Run], error: impl Fn(&Run, usize) -> Option<f64>) -> Option<f64> {
+    let mut worst: Option<f64> = None;
+    for r in runs {
+        let exact = r.scores.iter().position(|s| s.name == "exact")?;
+        let mut best = f64::MAX;
+        for (i, s) in r.scores.iter().enumerate() {
+            if s.name != "exact" {
+                best = best.min(error(r, i)?);
+            }
+        }
+        if best <= 10e-6 {
+            return None;
+        }
+        let ratio = best / error(r, exact)?.max(1e-12);
+        worst = Some(worst.map_or(ratio, |w| w.min(ratio)));
+    }
+    worst
 }
 
 /// `(dq, hq)`: the largest body displacement (m) and turn (rad) that one count of every

@@ -37,6 +37,9 @@ pub struct MethodSpread {
     /// Each run's median error over its truth rows (the error while moving), across seeds.
     pub median_error_m: Spread,
     pub max_error_m: Spread,
+    /// Each run's median error while moving (relative pose error over 0.5 m of path once every
+    /// wheel is placed: [`super::moving`]), across seeds; `None` if a seed has none.
+    pub moving_median_error_m: Option<Spread>,
     pub final_heading_error_rad: Spread,
     /// Every seed's run, in seed order (the first one's track feeds `--out`).
     #[serde(skip)]
@@ -44,14 +47,19 @@ pub struct MethodSpread {
 }
 
 impl MethodSpread {
-    /// The spread of `runs` (one per seed, not empty).
-    pub fn of(runs: Vec<Score>) -> MethodSpread {
+    /// The spread of `runs` (one per seed, not empty) and of their errors while moving.
+    pub fn of(runs: Vec<Score>, moving: Vec<Option<f64>>) -> MethodSpread {
         let f = |g: fn(&Score) -> f64| Spread::of(runs.iter().map(g));
         MethodSpread {
             name: runs.first().map(|s| s.name.clone()).unwrap_or_default(),
             final_error_m: f(|s| s.final_error_m),
             median_error_m: f(|s| s.median_error_m),
             max_error_m: f(|s| s.max_error_m),
+            moving_median_error_m: moving
+                .into_iter()
+                .collect::<Option<Vec<f64>>>()
+                .filter(|m| !m.is_empty())
+                .map(Spread::of),
             final_heading_error_rad: f(|s| s.final_heading_error_rad.abs()),
             runs,
         }
