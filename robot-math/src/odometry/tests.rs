@@ -222,6 +222,28 @@ fn seed_004_exact_is_bit_identical_to_carriage_exact() {
 }
 
 /// Tick instants of body-fixed wheels under a constant twist: wheel j ticks at k·Δ/|s_j|.
+/// Feeds `ev` (time-stamped ticks) to `odo` and updates it every millisecond for 1 s, with the
+/// counts so far (and `abs`, if given) as the board's 1 kHz update does. Returns the counts.
+fn run_1khz(odo: &mut Odometry, ev: &[(u64, usize, i8)], abs: Option<u16>) -> [i64; MAX_ENCODERS] {
+    let mut counts = [0i64; MAX_ENCODERS];
+    let mut next = 0;
+    for ms in 1..=1000u64 {
+        let t = ms * 1_000_000;
+        while next < ev.len() && ev[next].0 <= t {
+            let (te, j, s) = ev[next];
+            odo.tick(te, j, s);
+            counts[j] += s as i64;
+            next += 1;
+        }
+        odo.set_counts(counts);
+        if let Some(raw) = abs {
+            odo.set_abs(raw);
+        }
+        odo.update(t);
+    }
+    counts
+}
+
 fn ticks_for(layout: &Layout, tw: Twist, t_end: f64) -> Vec<(u64, usize, i8)> {
     let mut ev = Vec::new();
     for j in 0..layout.encoders() {
@@ -256,20 +278,7 @@ fn drive(layout: &Layout, method: Method, sensors: SensorKind, tw: Twist) -> (f6
         None,
     )
     .unwrap();
-    let ev = ticks_for(layout, tw, t_end);
-    let mut counts = [0i64; MAX_ENCODERS];
-    let mut next = 0;
-    for ms in 1..=1000u64 {
-        let t = ms * 1_000_000;
-        while next < ev.len() && ev[next].0 <= t {
-            let (te, j, s) = ev[next];
-            odo.tick(te, j, s);
-            counts[j] += s as i64;
-            next += 1;
-        }
-        odo.set_counts(counts);
-        odo.update(t);
-    }
+    let counts = run_1khz(&mut odo, &ticks_for(layout, tw, t_end), None);
     assert_eq!(odo.counts(), counts, "{method} {sensors:?}");
     let p = odo.pose().to_pose2();
     let want = start.integrate(tw, t_end);
@@ -337,21 +346,7 @@ fn every_method_follows_the_carriage() {
                 Some(raw),
             )
             .unwrap();
-            let ev = ticks_for(&layout, tw, 1.0);
-            let mut counts = [0i64; MAX_ENCODERS];
-            let mut next = 0;
-            for ms in 1..=1000u64 {
-                let t = ms * 1_000_000;
-                while next < ev.len() && ev[next].0 <= t {
-                    let (te, j, s) = ev[next];
-                    odo.tick(te, j, s);
-                    counts[j] += s as i64;
-                    next += 1;
-                }
-                odo.set_counts(counts);
-                odo.set_abs(raw);
-                odo.update(t);
-            }
+            run_1khz(&mut odo, &ticks_for(&layout, tw, 1.0), Some(raw));
             let want = g.body_pose(c0.integrate(tw, 1.0), beta);
             let p = odo.pose().to_pose2();
             let bound = if method == Method::Exact { 1e-4 } else { 5e-3 };

@@ -175,16 +175,8 @@ pub fn summary(results: &[CaseResult]) -> String {
                 let e = r.method("exact")?.median_error_m.max;
                 Some((e / r.start_drift_bound_m, *r))
             })
-            .fold(
-                (0.0f64, None),
-                |(w, c), (x, r)| {
-                    if x > w {
-                        (x, Some(r))
-                    } else {
-                        (w, c)
-                    }
-                },
-            );
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .map_or((0.0, None), |(x, r)| (x, Some(r)));
         out.push_str(&format!(
             "exact, tick time stamps, from power-on: median error {:.1}x (worst case, worst seed) \
              to {:.1}x (median case) below the best baseline on the {} cases where that \
