@@ -207,7 +207,10 @@ fn find_crossing(
             t = 0.5 * (lo + hi);
         }
         let gt = g(t);
-        if gt >= 0.0 {
+        if gt == 0.0 {
+            return t;
+        }
+        if gt > 0.0 {
             hi = t;
         } else {
             lo = t;
@@ -217,14 +220,17 @@ fn find_crossing(
         }
         let d = dg(t);
         let next = if d > 0.0 { t - gt / d } else { f64::NAN };
-        if next > lo && next < hi {
-            if (next - t).abs() <= TIME_TOL_S {
-                return next;
-            }
-            t = next;
-        } else {
-            t = 0.5 * (lo + hi);
+        // Converged: the step is below the tolerance. Checked before the bracket, since a step
+        // that small can land on the bracket's end (g's rounding), and bisecting from there
+        // would take some 30 more halvings to get where Newton already is.
+        if (next - t).abs() <= TIME_TOL_S {
+            return next.clamp(lo, hi);
         }
+        t = if next > lo && next < hi {
+            next
+        } else {
+            0.5 * (lo + hi)
+        };
     }
     hi
 }
