@@ -243,7 +243,6 @@ const DIFF_RUN: &Segments = &[
 #[test]
 fn play_is_bit_exact_on_streams_of_our_own_in_both_sensor_modes() {
     let dir = tempfile::tempdir().unwrap();
-    let board = Board::start(virtual_board::Options::default());
     let cases = [
         (
             write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.31, 0.77, 0.05]),
@@ -254,51 +253,71 @@ fn play_is_bit_exact_on_streams_of_our_own_in_both_sensor_modes() {
             DIFF_RUN,
         ),
     ];
-    for ((ticks, robot), run) in &cases {
-        let run_ms = (run.iter().map(|s| s.0).sum::<f64>() * 1e3).round() as u64;
-        for kind in [PlayKind::Ticks, PlayKind::Counts] {
-            let o = play_file(&board, ticks, robot, kind, Default::default())
-                .unwrap_or_else(|e| panic!("{} {kind:?}: {e:#}", robot.name));
-            assert_eq!(
-                o.mismatches, 0,
-                "{} {kind:?}: {:?}",
-                robot.name, o.first_mismatch
-            );
-            assert_eq!(o.board_updates, o.expected_updates);
-            // One update per millisecond of the run.
-            assert!(
-                o.board_updates.abs_diff(run_ms) <= 1,
-                "{} updates, {run_ms} ms",
-                o.board_updates
-            );
-            let err = o.final_error_m.unwrap();
-            // What is checked here is board == host; the error only has to be sane. With a
-            // random power-on phase `exact` is not yet within a count on the omni layout
-            // (issue 8: about 0.2 mm here); counts at 1 kHz add their quantisation.
-            let bound = if kind == PlayKind::Ticks { 1e-3 } else { 3e-3 };
-            assert!(err < bound, "{} {kind:?}: final error {err}", robot.name);
-            if kind == PlayKind::Ticks {
-                assert!(
-                    o.bytes_per_event <= 2.0,
-                    "{} bytes per event",
-                    o.bytes_per_event
-                );
+    // Each play on its own board, all at once: a board runs in real time, so one after the
+    // other they would take the sum of their runs.
+    std::thread::scope(|scope| {
+        for ((ticks, robot), run) in &cases {
+            for kind in [PlayKind::Ticks, PlayKind::Counts] {
+                scope.spawn(move || play_one_exactly(ticks, robot, run, kind));
             }
         }
+    });
+}
+
+fn play_one_exactly(ticks: &Path, robot: &Robot, run: &Segments, kind: PlayKind) {
+    let board = Board::start(virtual_board::Options::default());
+    let run_ms = (run.iter().map(|s| s.0).sum::<f64>() * 1e3).round() as u64;
+    let o = play_file(&board, ticks, robot, kind, Default::default())
+        .unwrap_or_else(|e| panic!("{} {kind:?}: {e:#}", robot.name));
+    assert_eq!(
+        o.mismatches, 0,
+        "{} {kind:?}: {:?}",
+        robot.name, o.first_mismatch
+    );
+    assert_eq!(o.board_updates, o.expected_updates);
+    // One update per millisecond of the run.
+    assert!(
+        o.board_updates.abs_diff(run_ms) <= 1,
+        "{} updates, {run_ms} ms",
+        o.board_updates
+    );
+    let err = o.final_error_m.unwrap();
+    // What is checked here is board == host; the error only has to be within a count (0.25
+    // and 0.3 mm) with time stamps. Measured: 0.8 µm on the axle, 72 µm on the omni; sampled
+    // counts add their quantisation (0.08 and 0.19 mm).
+    let bound = if kind == PlayKind::Ticks {
+        0.25e-3
+    } else {
+        1e-3
+    };
+    assert!(err < bound, "{} {kind:?}: final error {err}", robot.name);
+    if kind == PlayKind::Ticks {
+        assert!(
+            o.bytes_per_event <= 2.0,
+            "{} bytes per event",
+            o.bytes_per_event
+        );
     }
 }
 
 #[test]
 fn a_corrupted_and_a_dropped_frame_are_recovered_with_nothing_lost() {
     let dir = tempfile::tempdir().unwrap();
-    let board = Board::start(virtual_board::Options::default());
     let (ticks, robot) = write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.5, 0.5, 0.5]);
-    let clean = play_file(&board, &ticks, &robot, PlayKind::Ticks, Default::default()).unwrap();
     let faults = host_bench::serial::link::Faults {
         corrupt: vec![2],
         drop: vec![6],
     };
-    let o = play_file(&board, &ticks, &robot, PlayKind::Ticks, faults).unwrap();
+    // The clean play and the faulty one at once, each on its own board (both run in real time).
+    let play_on_a_board = |faults| {
+        let board = Board::start(virtual_board::Options::default());
+        play_file(&board, &ticks, &robot, PlayKind::Ticks, faults).unwrap()
+    };
+    let (clean, o) = std::thread::scope(|scope| {
+        let clean = scope.spawn(|| play_on_a_board(Default::default()));
+        let o = play_on_a_board(faults);
+        (clean.join().unwrap(), o)
+    });
     assert_eq!((o.frames_corrupted, o.frames_dropped), (1, 1));
     assert_eq!(o.mismatches, 0, "{:?}", o.first_mismatch);
     assert_eq!(o.board_updates, clean.board_updates);
