@@ -112,10 +112,15 @@ impl TickTracker {
         };
         self.last_t = Some(t_ns);
         self.dir = step;
-        self.fit_start(t_ns, step);
+        // Only a wheel's first ticks: every later one skips the fit's call altogether.
+        if self.placing() {
+            self.fit_start(t_ns, step);
+        }
     }
 
     /// The first ticks in one direction place the wheel inside its count at power-on.
+    #[cold]
+    #[inline(never)]
     fn fit_start(&mut self, t_ns: u64, step: i8) {
         let n = self.first_len as usize;
         let (Some(slot), true) = (self.first.get_mut(n), n == 0 || step == self.first_dir) else {
