@@ -1,9 +1,11 @@
-//! The QEMU image: every case between a begin marker of its own and the common end marker,
-//! then a semihosting exit.
+//! The QEMU image: each measured call between the common markers `m3b_begin` and `m3b_end`,
+//! after a label naming its case; then a semihosting exit.
 //!
-//! The markers are functions the script finds by name in QEMU's execution log (`-d exec` names
-//! the function of every instruction). Each writes its own number to a volatile static, so the
-//! linker cannot fold two of them into one symbol.
+//! The script finds the markers and labels by name in QEMU's execution log (`-d exec` names
+//! the function of every instruction) and counts the instructions from `m3b_begin` to
+//! `m3b_end`, so every call is counted from the same code whatever its case (the label's own
+//! instructions come before `m3b_begin`). Each marker and label writes its own number to a
+//! volatile static, so the linker cannot fold two of them into one symbol.
 
 use core::ptr::{addr_of_mut, write_volatile};
 
@@ -14,17 +16,21 @@ use m3_bench::{self as cases, Case, Meter};
 
 static mut MARK: u32 = 0;
 
-macro_rules! markers {
+macro_rules! marker {
+    ($name:ident = $n:literal) => {
+        #[no_mangle]
+        #[inline(never)]
+        extern "C" fn $name() {
+            // SAFETY: one thread; the value is never read, only kept by `volatile`.
+            unsafe { write_volatile(addr_of_mut!(MARK), $n) }
+        }
+    };
+}
+
+macro_rules! labels {
     ($($case:ident => $name:ident = $n:literal),* $(,)?) => {
-        $(
-            #[no_mangle]
-            #[inline(never)]
-            extern "C" fn $name() {
-                // SAFETY: one thread; the value is never read, only kept by `volatile`.
-                unsafe { write_volatile(addr_of_mut!(MARK), $n) }
-            }
-        )*
-        fn begin(case: Case) {
+        $(marker!($name = $n);)*
+        fn label(case: Case) {
             match case {
                 $(Case::$case => $name(),)*
             }
@@ -32,23 +38,18 @@ macro_rules! markers {
     };
 }
 
-markers! {
-    Empty => m3b_begin_empty = 1,
-    ExactEdge => m3b_begin_exact_edge = 2,
-    ExactEdgePlacing => m3b_begin_exact_edge_placing = 3,
-    ExactTicksUpdate => m3b_begin_exact_ticks_update = 4,
-    ExactCountsUpdate => m3b_begin_exact_counts_update = 5,
-    Omni3Edge => m3b_begin_omni3_edge = 6,
-    Omni3TicksUpdate => m3b_begin_omni3_ticks_update = 7,
-    Omni3CountsUpdate => m3b_begin_omni3_counts_update = 8,
+labels! {
+    Empty => m3b_case_empty = 1,
+    ExactEdge => m3b_case_exact_edge = 2,
+    ExactEdgePlacing => m3b_case_exact_edge_placing = 3,
+    ExactTicksUpdate => m3b_case_exact_ticks_update = 4,
+    ExactCountsUpdate => m3b_case_exact_counts_update = 5,
+    Omni3Edge => m3b_case_omni3_edge = 6,
+    Omni3TicksUpdate => m3b_case_omni3_ticks_update = 7,
+    Omni3CountsUpdate => m3b_case_omni3_counts_update = 8,
 }
-
-#[no_mangle]
-#[inline(never)]
-extern "C" fn m3b_end() {
-    // SAFETY: as in the begin markers.
-    unsafe { write_volatile(addr_of_mut!(MARK), 0) }
-}
+marker!(m3b_begin = 100);
+marker!(m3b_end = 0);
 
 /// cortex-m-rt's `device` feature is on (through firmware-slave's board dependencies, which
 /// Cargo gives its library too), so the link wants a device's interrupt vectors. The F103's
@@ -67,7 +68,8 @@ struct Markers;
 impl Meter for Markers {
     #[inline(never)]
     fn measure(&mut self, case: Case, call: &mut dyn FnMut()) {
-        begin(case);
+        label(case);
+        m3b_begin();
         call();
         m3b_end();
     }

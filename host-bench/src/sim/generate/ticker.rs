@@ -183,9 +183,11 @@ impl Ticker {
     }
 }
 
-/// The first instant in `[lo, hi]` where the non-decreasing `g` reaches 0, given `g` at both
-/// ends (if `g(lo) ≥ 0` already, `lo`; if `g(hi) < 0`, `hi`). Newton's method with derivative
-/// `dg`, safeguarded by bisection: every iterate stays inside the shrinking bracket.
+/// The instant in `[lo, hi]` where the non-decreasing `g` reaches 0, given `g` at both ends
+/// (if `g(lo) ≥ 0` already, `lo`; if `g(hi) < 0`, `hi`). Newton's method with derivative `dg`,
+/// safeguarded by bisection: every iterate stays inside the shrinking bracket. Where `g` is
+/// exactly 0 on a whole interval (a wheel standing still on an edge) any instant of it may be
+/// returned: the wheel is on the edge at each.
 fn find_crossing(
     g: &dyn Fn(f64) -> f64,
     dg: &dyn Fn(f64) -> f64,
@@ -270,6 +272,19 @@ mod tests {
             (1.0, 0.8),
         );
         assert!((t - 0.2f64.cbrt()).abs() < 1e-12, "{t}");
+    }
+
+    #[test]
+    fn a_root_hit_exactly_takes_one_evaluation() {
+        // The secant lands on the root of a line: g(t) = 0 there, and Newton's step is zero.
+        // The finder used to see the step land on its bracket's end and bisect some 40 times.
+        let calls = std::cell::Cell::new(0);
+        let g = |t: f64| {
+            calls.set(calls.get() + 1);
+            t - 0.5
+        };
+        let t = find_crossing(&g, &|_| 1.0, (0.0, -0.5), (1.0, 0.5));
+        assert_eq!((t, calls.get()), (0.5, 1));
     }
 
     #[test]
