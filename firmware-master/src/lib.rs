@@ -33,8 +33,16 @@ pub struct MasterConfig {
     /// Wheel speed at 100 % duty, m/s (the motors' feed-forward constant).
     pub speed_at_full_duty: f64,
     pub pursuit: PursuitParams,
-    /// Within this distance of a stopped target the robot counts as arrived, metres.
+    /// Within this distance of a stopped target, and `arrive_heading_tolerance` of its
+    /// heading, the robot has arrived: the motors switch off and it holds, metres.
     pub arrive_tolerance: f64,
+    /// Radians. Above the pose's heading quantum (seed 004's 8-bit swivel encoder: 1.4°, so
+    /// up to 0.7° off), or the heading loop would chase the sensor's steps.
+    pub arrive_heading_tolerance: f64,
+    /// Holding at the goal, the motors stay off until the robot is this far from it (pushed
+    /// away), metres: a band wider than `arrive_tolerance`, so a robot that coasts a little
+    /// after switching off does not switch back on.
+    pub hold_release: f64,
     pub control_period_us: u32,
     pub poll_period_us: u32,
     pub telemetry_period_us: u32,
@@ -82,7 +90,9 @@ impl MasterConfig {
             slow_radius: 0.15,
             max_spin: 2.0,
         },
-        arrive_tolerance: 0.005,
+        arrive_tolerance: 0.001,
+        arrive_heading_tolerance: 0.02,
+        hold_release: 0.005,
         control_period_us: 10_000,
         poll_period_us: 2_000,
         telemetry_period_us: 20_000,

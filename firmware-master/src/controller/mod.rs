@@ -38,6 +38,9 @@ pub struct Controller {
     cfg: MasterConfig,
     omni: Omni3,
     goal: Option<Goal>,
+    /// Arrived at a stopped target: the motors are off until the robot is pushed past
+    /// [`MasterConfig::hold_release`] or a new target comes.
+    holding: bool,
     status: u16,
     last_host_rx: Option<Instant>,
     // Slave link.
@@ -80,6 +83,7 @@ impl Controller {
             omni: Omni3::new(cfg.wheel_distance, cfg.v_max)?,
             cfg,
             goal: None,
+            holding: false,
             status: 0,
             last_host_rx: None,
             spi_seq: 0,
@@ -130,6 +134,7 @@ impl Controller {
             HostToMaster::FollowTarget(t) => match self.validate(now, &t) {
                 Some(goal) => {
                     self.goal = Some(goal);
+                    self.holding = false;
                     self.status &= !(status::ARRIVED | status::COMMAND_REJECTED);
                     self.status |= status::FOLLOWING;
                     None
@@ -190,6 +195,7 @@ impl Controller {
 
     fn stop_following(&mut self, why: u16) {
         self.goal = None;
+        self.holding = false;
         self.status &= !(status::FOLLOWING | status::ARRIVED);
         self.status |= why;
     }
@@ -308,6 +314,20 @@ impl Controller {
         };
 
         let (target, stopped) = goal.target.position(secs(now));
+        let off = libm::hypot(target.0 - est.x, target.1 - est.y);
+        let turned = libm::fabs(robot_math::se2::wrap_angle(goal.heading - est.theta));
+        if stopped && off < self.cfg.arrive_tolerance && turned < self.cfg.arrive_heading_tolerance
+        {
+            self.holding = true;
+        }
+        // Holding still at the goal, without chasing the sensors' last count: the motors stay
+        // off until the robot is pushed out of the release band (or the target moves on).
+        if self.holding && stopped && off < self.cfg.hold_release {
+            self.status |= status::ARRIVED;
+            return self.halt();
+        }
+        self.holding = false;
+        self.status &= !status::ARRIVED;
         let (vx, vy, omega) = pursue(
             (est.x, est.y),
             est.theta,
@@ -316,9 +336,6 @@ impl Controller {
             goal.robot_speed,
             &self.cfg.pursuit,
         );
-        if stopped && libm::hypot(target.0 - est.x, target.1 - est.y) < self.cfg.arrive_tolerance {
-            self.status |= status::ARRIVED;
-        }
         let (bx, by) = field_to_body(vx, vy, est.theta);
         let (wheels, _) = self.omni.wheel_speeds_saturated(Twist::new(bx, by, omega));
         self.cmd_twist = self.omni.twist(wheels);

@@ -60,6 +60,44 @@ fn drives_towards_the_target_and_stops_when_the_slave_goes_quiet() {
 }
 
 #[test]
+fn at_the_goal_the_motors_switch_off_and_stay_off_until_pushed_away() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    let mut seq = 0;
+    let mut at = |c: &mut Controller, ms: u64, x_um: i32, heading: u32| {
+        seq += 1;
+        let mut f = slave_frame(seq, 0, x_um);
+        f.pose.heading = BinaryAngle(heading);
+        c.on_slave_frame(t(ms), Ok(f));
+        c.on_host_message(t(ms), HostToMaster::Heartbeat);
+        c.control(t(ms))
+    };
+    // 3 mm short: still driving.
+    assert!(matches!(at(&mut c, 10, 997_000, 0), Drive::Duty(_)));
+    assert_eq!(c.status() & status::ARRIVED, 0);
+    // Within 1 mm but turned 0.05 rad: the heading is not there yet, still driving.
+    let turned = (0.05 / core::f64::consts::TAU * 4_294_967_296.0) as u32;
+    assert!(matches!(at(&mut c, 20, 999_500, turned), Drive::Duty(_)));
+    // Within 1 mm and the heading within tolerance: arrived, motors off.
+    assert_eq!(at(&mut c, 30, 999_500, 0), Drive::Stop);
+    let arrived = status::FOLLOWING | status::ARRIVED;
+    assert_eq!(c.status() & (arrived | status::MOTORS_ON), arrived);
+    // Coasting 3 mm further (inside the 5 mm release band) and a heading step of the sensor:
+    // the motors stay off, for as long as it stays there.
+    for ms in (40..10_000).step_by(10) {
+        assert_eq!(at(&mut c, ms, 1_003_000, turned), Drive::Stop, "{ms} ms");
+    }
+    // Pushed 6 mm away: it drives back, and is no longer arrived.
+    assert!(matches!(at(&mut c, 10_000, 1_006_000, 0), Drive::Duty(_)));
+    assert_eq!(c.status() & status::ARRIVED, 0);
+    assert_ne!(c.status() & status::MOTORS_ON, 0);
+    // Back at the goal it holds again; a new target lets it go.
+    assert_eq!(at(&mut c, 10_010, 1_000_000, 0), Drive::Stop);
+    c.on_host_message(t(10_020), follow(400_000));
+    assert_eq!(c.status() & status::ARRIVED, 0);
+}
+
+#[test]
 fn a_stuck_slave_counts_as_lost() {
     let mut c = ctl();
     c.on_host_message(t(0), follow(500_000));

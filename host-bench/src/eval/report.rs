@@ -25,6 +25,7 @@ pub fn summary_text(s: &Summary) -> String {
          slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
          encoders        {p0:.3} and {p1:.3} of a count past an edge at power-on\n\
          robot           ended at ({x:.4}, {y:.4}) m, {dg:.1} mm from the goal{arr}\n\
+         motors          switched on {on} times{after}\n\
          SPI frames      {spi} exchanged, {spir} rejected\n\
          serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",
         scenario = s.scenario,
@@ -43,6 +44,14 @@ pub fn summary_text(s: &Summary) -> String {
         y = s.final_position_m.1,
         dg = s.distance_to_goal_m * 1e3,
         arr = if s.arrived { " (arrived)" } else { "" },
+        on = s.motor_switch_ons,
+        after = match (
+            s.motor_switch_ons_after_arrival,
+            s.motor_driven_s_after_arrival
+        ) {
+            (Some(n), Some(t)) => format!(", {n} after arriving (driven {t:.2} s after it)"),
+            _ => String::new(),
+        },
         spi = s.spi_frames,
         spir = s.spi_frames_rejected,
         ser = s.serial_frames,

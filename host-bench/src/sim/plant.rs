@@ -118,6 +118,10 @@ pub struct Plant {
     wheel_speed: [f64; 3],
     /// Duty the motors are driven with, per mille.
     duty: [i16; 3],
+    /// Times the motors went from standing (every duty zero, or stopped) to driven, and the
+    /// time they spent driven, seconds.
+    switch_ons: u64,
+    driven_s: f64,
     /// Each encoder's position within its first count at the start, in counts, [0, 1): a real
     /// encoder is not aligned to a count edge when the robot is switched on.
     encoder_phase: [f64; 2],
@@ -139,6 +143,8 @@ impl Plant {
             },
             wheel_speed: [0.0; 3],
             duty: [0; 3],
+            switch_ons: 0,
+            driven_s: 0.0,
             encoder_phase,
             path_length: 0.0,
             edges: Vec::new(),
@@ -159,7 +165,22 @@ impl Plant {
     }
 
     pub fn set_duty(&mut self, duty: [i16; 3]) {
+        let driven = |d: [i16; 3]| d != [0; 3];
+        if driven(duty) && !driven(self.duty) {
+            self.switch_ons += 1;
+        }
         self.duty = duty;
+    }
+
+    /// Times the motors went from standing (every duty zero) to driven since the start: what
+    /// a controller that dithers at rest shows, one switch-on per kick.
+    pub fn motor_switch_ons(&self) -> u64 {
+        self.switch_ons
+    }
+
+    /// Seconds the motors spent driven (some duty non-zero) since the start.
+    pub fn motor_driven_s(&self) -> f64 {
+        self.driven_s
     }
 
     pub fn duty(&self) -> [i16; 3] {
@@ -222,6 +243,9 @@ impl Plant {
     pub fn advance(&mut self, dt: f64, max_step: f64) {
         if dt <= 0.0 {
             return;
+        }
+        if self.duty != [0; 3] {
+            self.driven_s += dt;
         }
         let n = (dt / max_step).ceil().max(1.0) as usize;
         let h = dt / n as f64;

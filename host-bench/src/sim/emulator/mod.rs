@@ -183,6 +183,14 @@ pub struct Summary {
     pub final_position_m: (f64, f64),
     pub distance_to_goal_m: f64,
     pub arrived: bool,
+    /// Times the motors went from standing to driven over the whole run, and after the master
+    /// first reported arrival (`None` if it never did): a controller that holds still at the
+    /// goal switches them on no more.
+    pub motor_switch_ons: u64,
+    pub motor_switch_ons_after_arrival: Option<u64>,
+    /// Seconds the motors were driven (some duty non-zero) after the master first reported
+    /// arrival: the settling, and nothing while it holds.
+    pub motor_driven_s_after_arrival: Option<f64>,
     /// SPI transactions the master ran, and frames either side dropped (CRC, decode, idle).
     pub spi_frames: u64,
     pub spi_frames_rejected: u64,
@@ -295,6 +303,8 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let mut log = Vec::new();
     let mut last_seq = None;
     let (mut max_error, mut slave_updates) = (0.0f64, 0u64);
+    // The motors' switch-ons and driven time when the master first said it arrived.
+    let mut at_arrival: Option<(u64, f64)> = None;
     let target = robot_math::pursuit::SegmentTarget {
         from: scenario.target_from,
         to: scenario.target_to,
@@ -324,6 +334,13 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             slave_updates += 1;
             let err = slave_shared.pose().distance_to(plant.borrow().body());
             max_error = max_error.max(err);
+        }
+        if at_arrival.is_none()
+            && master_shared.with(|c| c.status()).unwrap_or(0) & protocol::serial::status::ARRIVED
+                != 0
+        {
+            let p = plant.borrow();
+            at_arrival = Some((p.motor_switch_ons(), p.motor_driven_s()));
         }
         if next >= next_log {
             next_log = next + log_every;
@@ -378,6 +395,9 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         final_position_m: (truth.x, truth.y),
         distance_to_goal_m: distance_to_goal,
         arrived: status & protocol::serial::status::ARRIVED != 0,
+        motor_switch_ons: plant.motor_switch_ons(),
+        motor_switch_ons_after_arrival: at_arrival.map(|(on, _)| plant.motor_switch_ons() - on),
+        motor_driven_s_after_arrival: at_arrival.map(|(_, s)| plant.motor_driven_s() - s),
         spi_frames: wire.borrow().transactions,
         spi_frames_rejected: counters.spi_rejected as u64 + slave_rx_rejected,
         serial_frames: counters.serial_ok as u64 + h.frames_received,
