@@ -82,6 +82,18 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// Seed 003's speed envelope of the three-omni drive: top translation speed in every
+    /// direction and with spin, from the model and driven flat out on the simulated robot,
+    /// and where an arc with spin beats a straight line.
+    Envelope {
+        /// Print {translate_max_ratio, spin_translate_max_ratio, directions:[...],
+        /// spin_cases:[...], arc_vs_line:{...}, ...} instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Write the envelope as an SVG (polar: model, measured, with spin).
+        #[arg(long, value_name = "FILE.svg")]
+        out: Option<PathBuf>,
+    },
     /// Write the exact tick stream a robot's ideal encoders produce along a trajectory
     /// (docs/tick-stream.md).
     Generate(cli::generate::GenerateArgs),
@@ -224,6 +236,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Accuracy { json, out, seeds } => cli::analyse::run_accuracy(json, out, seeds),
+        Command::Envelope { json, out } => cli::envelope::run_envelope(json, out),
         Command::Generate(a) => cli::generate::run_generate(a),
         Command::Replay {
             robot,

@@ -44,6 +44,29 @@ fn emulate_json_prints_the_documented_keys() {
 }
 
 #[test]
+fn envelope_json_gives_seed_003s_top_speeds_and_the_svg_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let svg = dir.path().join("envelope.svg");
+    let out = host_bench()
+        .args(["envelope", "--json", "--out"])
+        .arg(&svg)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let ratio = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k} missing"));
+    // Within 2 % of 2/√3 and 4/3 (the check).
+    assert!((ratio("translate_max_ratio") / (2.0 / 3f64.sqrt()) - 1.0).abs() < 0.02);
+    assert!((ratio("spin_translate_max_ratio") / (4.0 / 3.0) - 1.0).abs() < 0.02);
+    assert_eq!(v["directions"].as_array().map(Vec::len), Some(360));
+    assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+}
+
+#[test]
 fn emulate_out_writes_csv_svg_and_json() {
     let dir = std::env::temp_dir().join(format!("omnibench-cli-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

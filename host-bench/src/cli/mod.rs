@@ -2,6 +2,7 @@
 //! (`main.rs` holds the rest).
 
 pub mod analyse;
+pub mod envelope;
 pub mod flash;
 pub mod generate;
 pub mod serial;

@@ -3,5 +3,6 @@
 
 pub mod accuracy;
 pub mod board_poses;
+pub mod envelope;
 pub mod replay;
 pub mod report;
