@@ -89,6 +89,7 @@ impl MasterConfig {
             heading_gain: 4.0,
             slow_radius: 0.15,
             max_spin: 2.0,
+            period_s: 0.0,
         },
         arrive_tolerance: 0.001,
         arrive_heading_tolerance: 0.02,

@@ -94,6 +94,17 @@ enum Command {
         #[arg(long, value_name = "FILE.svg")]
         out: Option<PathBuf>,
     },
+    /// Seed 004's pursuit period: the default scenario emulated with the master running the
+    /// paper's Euler pursuit for τ = 0.1 ... 1.5 s (and our law as τ = 0), with the path's
+    /// jitter and the tracking error of each.
+    PursuitSweep {
+        /// Print {"rows":[{tau_s, law, jitter, tracking_rms_m, hold_rms_m, hold_max_m, ...}]}.
+        #[arg(long)]
+        json: bool,
+        /// Simulated seconds of each run (the target stops after 7.1 s).
+        #[arg(long, default_value_t = 12.0)]
+        duration: f64,
+    },
     /// Write the exact tick stream a robot's ideal encoders produce along a trajectory
     /// (docs/tick-stream.md).
     Generate(cli::generate::GenerateArgs),
@@ -237,6 +248,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Accuracy { json, out, seeds } => cli::analyse::run_accuracy(json, out, seeds),
         Command::Envelope { json, out } => cli::envelope::run_envelope(json, out),
+        Command::PursuitSweep { json, duration } => {
+            cli::envelope::run_pursuit_sweep(json, duration)
+        }
         Command::Generate(a) => cli::generate::run_generate(a),
         Command::Replay {
             robot,

@@ -67,6 +67,35 @@ fn envelope_json_gives_seed_003s_top_speeds_and_the_svg_is_written() {
 }
 
 #[test]
+fn pursuit_sweep_json_has_a_row_per_period() {
+    let out = host_bench()
+        .args(["pursuit-sweep", "--json", "--duration", "9"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = v["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 16);
+    for (r, tau) in rows.iter().zip(host_bench::eval::pursuit_sweep::PERIODS_S) {
+        assert_eq!(r["tau_s"].as_f64(), Some(tau));
+        for key in ["jitter", "tracking_rms_m", "hold_rms_m", "hold_max_m"] {
+            assert!(r[key].as_f64().is_some_and(f64::is_finite), "{key}: {r}");
+        }
+    }
+    // Too short to see the target stop: refused, with the reason.
+    let out = host_bench()
+        .args(["pursuit-sweep", "--duration", "5"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--duration"));
+}
+
+#[test]
 fn emulate_out_writes_csv_svg_and_json() {
     let dir = std::env::temp_dir().join(format!("omnibench-cli-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

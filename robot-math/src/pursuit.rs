@@ -15,6 +15,10 @@ pub struct PursuitParams {
     pub slow_radius: f64,
     /// Highest body spin rate the heading hold may ask for, rad/s.
     pub max_spin: f64,
+    /// Seed 004's Euler pursuit period τ, seconds: the direction to the target is taken once
+    /// per period and held, at full speed ([`euler_step`]). Zero: the law above at every
+    /// control step, slowing near the target.
+    pub period_s: f64,
 }
 
 impl Default for PursuitParams {
@@ -23,6 +27,7 @@ impl Default for PursuitParams {
             heading_gain: 4.0,
             slow_radius: 0.15,
             max_spin: 2.0,
+            period_s: 0.0,
         }
     }
 }
@@ -72,6 +77,18 @@ pub fn pursue(
     }
     let v = speed * (dist / p.slow_radius).min(1.0);
     (v * ex / dist, v * ey / dist, omega)
+}
+
+/// Seed 004's Euler pursuit step: the field velocity that heads straight at `target` at
+/// `speed`, whatever the distance (the paper steps V_t·τ each period, so near the target it
+/// overshoots by up to that step). Zero on the target itself.
+pub fn euler_step(pos: (f64, f64), target: (f64, f64), speed: f64) -> (f64, f64) {
+    let (ex, ey) = (target.0 - pos.0, target.1 - pos.1);
+    let dist = libm::hypot(ex, ey);
+    if dist < 1e-9 {
+        return (0.0, 0.0);
+    }
+    (speed * ex / dist, speed * ey / dist)
 }
 
 /// Rotate a field-frame velocity into the body frame of a robot at `heading`.

@@ -2,7 +2,7 @@
 //! duties out, time passed explicitly. Unit-tested without any executor.
 
 use crate::MasterConfig;
-use embassy_time::Instant;
+use embassy_time::{Duration, Instant};
 use protocol::serial::{
     status, BoardInfo, HostToMaster, LinkCounters, MasterToHost, MovingTarget, RejectReason,
     Telemetry,
@@ -12,7 +12,7 @@ use protocol::spi::{MasterFrame, SlaveCommand, SlaveFrame, SpiFrameError};
 use crate::relay::Relay;
 use protocol::{Pose, PROTOCOL_VERSION};
 use robot_math::omni3::Omni3;
-use robot_math::pursuit::{field_to_body, pursue, SegmentTarget};
+use robot_math::pursuit::{euler_step, field_to_body, pursue, SegmentTarget};
 use robot_math::{Pose2, Twist};
 
 /// Slave commands waiting for the slave, oldest first: room for a whole robot upload (two
@@ -41,6 +41,9 @@ pub struct Controller {
     /// Arrived at a stopped target: the motors are off until the robot is pushed past
     /// [`MasterConfig::hold_release`] or a new target comes.
     holding: bool,
+    /// With seed 004's Euler pursuit: the field velocity taken at the period's start, and when
+    /// the period ends.
+    euler: Option<((f64, f64), Instant)>,
     status: u16,
     last_host_rx: Option<Instant>,
     // Slave link.
@@ -84,6 +87,7 @@ impl Controller {
             cfg,
             goal: None,
             holding: false,
+            euler: None,
             status: 0,
             last_host_rx: None,
             spi_seq: 0,
@@ -135,6 +139,7 @@ impl Controller {
                 Some(goal) => {
                     self.goal = Some(goal);
                     self.holding = false;
+                    self.euler = None;
                     self.status &= !(status::ARRIVED | status::COMMAND_REJECTED);
                     self.status |= status::FOLLOWING;
                     None
@@ -196,6 +201,7 @@ impl Controller {
     fn stop_following(&mut self, why: u16) {
         self.goal = None;
         self.holding = false;
+        self.euler = None;
         self.status &= !(status::FOLLOWING | status::ARRIVED);
         self.status |= why;
     }
@@ -328,7 +334,7 @@ impl Controller {
         }
         self.holding = false;
         self.status &= !status::ARRIVED;
-        let (vx, vy, omega) = pursue(
+        let (mut vx, mut vy, omega) = pursue(
             (est.x, est.y),
             est.theta,
             target,
@@ -336,6 +342,20 @@ impl Controller {
             goal.robot_speed,
             &self.cfg.pursuit,
         );
+        let period = self.cfg.pursuit.period_s;
+        if period > 0.0 {
+            // Seed 004: the direction is taken once per period and held, at full speed.
+            let held = match self.euler {
+                Some((v, until)) if now < until => v,
+                _ => {
+                    let v = euler_step((est.x, est.y), target, goal.robot_speed);
+                    let until = now + Duration::from_micros((period * 1e6) as u64);
+                    self.euler = Some((v, until));
+                    v
+                }
+            };
+            (vx, vy) = held;
+        }
         let (bx, by) = field_to_body(vx, vy, est.theta);
         let (wheels, _) = self.omni.wheel_speeds_saturated(Twist::new(bx, by, omega));
         self.cmd_twist = self.omni.twist(wheels);

@@ -4,5 +4,6 @@
 pub mod accuracy;
 pub mod board_poses;
 pub mod envelope;
+pub mod pursuit_sweep;
 pub mod replay;
 pub mod report;
