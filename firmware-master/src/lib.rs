@@ -36,13 +36,16 @@ pub struct MasterConfig {
     /// Within this distance of a stopped target, and `arrive_heading_tolerance` of its
     /// heading, the robot has arrived: the motors switch off and it holds, metres.
     pub arrive_tolerance: f64,
-    /// Radians. Above the pose's heading quantum (seed 004's 8-bit swivel encoder: 1.4°, so
-    /// up to 0.7° off), or the heading loop would chase the sensor's steps.
+    /// Radians. Above half the pose's heading step (seed 004's 8-bit swivel encoder: 1.4°
+    /// steps, so up to 0.7° off), or the heading loop would chase the sensor's steps.
     pub arrive_heading_tolerance: f64,
     /// Holding at the goal, the motors stay off until the robot is this far from it (pushed
     /// away), metres: a band wider than `arrive_tolerance`, so a robot that coasts a little
     /// after switching off does not switch back on.
     pub hold_release: f64,
+    /// ...or turned this far from the goal's heading, radians (over two of the swivel
+    /// encoder's 1.4° steps).
+    pub hold_heading_release: f64,
     pub control_period_us: u32,
     pub poll_period_us: u32,
     pub telemetry_period_us: u32,
@@ -94,6 +97,7 @@ impl MasterConfig {
         arrive_tolerance: 0.001,
         arrive_heading_tolerance: 0.02,
         hold_release: 0.005,
+        hold_heading_release: 0.06,
         control_period_us: 10_000,
         poll_period_us: 2_000,
         telemetry_period_us: 20_000,

@@ -101,7 +101,7 @@ enum Command {
         /// Print {"rows":[{tau_s, law, jitter, tracking_rms_m, hold_rms_m, hold_max_m, ...}]}.
         #[arg(long)]
         json: bool,
-        /// Simulated seconds of each run (the target stops after 7.1 s).
+        /// Simulated seconds of each run, 10 to 3600 (the target stops after 7.1 s).
         #[arg(long, default_value_t = 12.0)]
         duration: f64,
     },

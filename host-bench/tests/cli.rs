@@ -69,7 +69,7 @@ fn envelope_json_gives_seed_003s_top_speeds_and_the_svg_is_written() {
 #[test]
 fn pursuit_sweep_json_has_a_row_per_period() {
     let out = host_bench()
-        .args(["pursuit-sweep", "--json", "--duration", "9"])
+        .args(["pursuit-sweep", "--json", "--duration", "10"])
         .output()
         .unwrap();
     assert!(

@@ -328,8 +328,14 @@ impl Controller {
         }
         // Holding still at the goal, without chasing the sensors' last count: the motors stay
         // off until the robot is pushed out of the release band (or the target moves on).
-        if self.holding && stopped && off < self.cfg.hold_release {
+        if self.holding
+            && stopped
+            && off < self.cfg.hold_release
+            && turned < self.cfg.hold_heading_release
+        {
             self.status |= status::ARRIVED;
+            // A pursuit period in progress ends here: pushed out, the robot heads anew.
+            self.euler = None;
             return self.halt();
         }
         self.holding = false;
@@ -349,7 +355,9 @@ impl Controller {
                 Some((v, until)) if now < until => v,
                 _ => {
                     let v = euler_step((est.x, est.y), target, goal.robot_speed);
-                    let until = now + Duration::from_micros((period * 1e6) as u64);
+                    // Periods beyond an hour are a configuration error; saturate, never panic.
+                    let hold = Duration::from_micros((period.min(3600.0) * 1e6) as u64);
+                    let until = now.checked_add(hold).unwrap_or(Instant::MAX);
                     self.euler = Some((v, until));
                     v
                 }

@@ -84,9 +84,16 @@ fn at_the_goal_the_motors_switch_off_and_stay_off_until_pushed_away() {
     assert_eq!(c.status() & (arrived | status::MOTORS_ON), arrived);
     // Coasting 3 mm further (inside the 5 mm release band) and a heading step of the sensor:
     // the motors stay off, for as long as it stays there.
-    for ms in (40..10_000).step_by(10) {
+    for ms in (40..9_980).step_by(10) {
         assert_eq!(at(&mut c, ms, 1_003_000, turned), Drive::Stop, "{ms} ms");
     }
+    // Turned 0.1 rad by hand: it turns back, then holds again.
+    let turned_far = (0.1 / core::f64::consts::TAU * 4_294_967_296.0) as u32;
+    assert!(matches!(
+        at(&mut c, 10_000 - 20, 1_003_000, turned_far),
+        Drive::Duty(_)
+    ));
+    assert_eq!(at(&mut c, 10_000 - 10, 1_000_000, 0), Drive::Stop);
     // Pushed 6 mm away: it drives back, and is no longer arrived.
     assert!(matches!(at(&mut c, 10_000, 1_006_000, 0), Drive::Duty(_)));
     assert_eq!(c.status() & status::ARRIVED, 0);
