@@ -137,7 +137,19 @@ impl Controller {
             HostToMaster::SetOdometry(a) => self.queue_for_slave(SlaveCommand::SetAlgorithm(a)),
             HostToMaster::FollowTarget(t) => match self.validate(now, &t) {
                 Some(goal) => {
+                    // The same standing target again (a host that refreshes its target) keeps
+                    // a hold; anything else starts over.
+                    let standing = |g: &Goal| g.target.from == g.target.to;
+                    let same = self.goal.is_some_and(|old| {
+                        standing(&old)
+                            && standing(&goal)
+                            && old.target.to == goal.target.to
+                            && old.heading == goal.heading
+                    });
                     self.goal = Some(goal);
+                    if same {
+                        return None;
+                    }
                     self.holding = false;
                     self.euler = None;
                     self.status &= !(status::ARRIVED | status::COMMAND_REJECTED);

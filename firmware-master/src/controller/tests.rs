@@ -98,10 +98,22 @@ fn at_the_goal_the_motors_switch_off_and_stay_off_until_pushed_away() {
     assert!(matches!(at(&mut c, 10_000, 1_006_000, 0), Drive::Duty(_)));
     assert_eq!(c.status() & status::ARRIVED, 0);
     assert_ne!(c.status() & status::MOTORS_ON, 0);
-    // Back at the goal it holds again; a new target lets it go.
+    // Back at the goal it holds again. The same standing target sent again keeps the hold;
+    // another target lets it go.
     assert_eq!(at(&mut c, 10_010, 1_000_000, 0), Drive::Stop);
     c.on_host_message(t(10_020), follow(400_000));
+    assert_ne!(c.status() & status::ARRIVED, 0);
+    assert_eq!(at(&mut c, 10_030, 1_003_000, 0), Drive::Stop);
+    let elsewhere = HostToMaster::FollowTarget(MovingTarget {
+        from: Point { x_um: 0, y_um: 0 },
+        to: Point { x_um: 0, y_um: 0 },
+        target_speed_um_s: 0,
+        robot_speed_um_s: 400_000,
+        heading: BinaryAngle(0),
+    });
+    c.on_host_message(t(10_040), elsewhere);
     assert_eq!(c.status() & status::ARRIVED, 0);
+    assert!(matches!(at(&mut c, 10_050, 1_003_000, 0), Drive::Duty(_)));
 }
 
 #[test]
