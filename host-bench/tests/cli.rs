@@ -6,6 +6,17 @@ fn host_bench() -> Command {
     Command::new(env!("CARGO_BIN_EXE_host-bench"))
 }
 
+/// Runs `host-bench` with `args`, which must succeed; its stdout as JSON.
+fn json_of(args: &[&std::ffi::OsStr]) -> serde_json::Value {
+    let out = host_bench().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 #[test]
 fn emulate_json_prints_the_documented_keys() {
     let out = host_bench()
@@ -47,17 +58,12 @@ fn emulate_json_prints_the_documented_keys() {
 fn envelope_json_gives_seed_003s_top_speeds_and_the_svg_is_written() {
     let dir = tempfile::tempdir().unwrap();
     let svg = dir.path().join("envelope.svg");
-    let out = host_bench()
-        .args(["envelope", "--json", "--out"])
-        .arg(&svg)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = json_of(&[
+        "envelope".as_ref(),
+        "--json".as_ref(),
+        "--out".as_ref(),
+        svg.as_ref(),
+    ]);
     let ratio = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k} missing"));
     // Within 2 % of 2/√3 and 4/3 (the check).
     assert!((ratio("translate_max_ratio") / (2.0 / 3f64.sqrt()) - 1.0).abs() < 0.02);
@@ -68,16 +74,8 @@ fn envelope_json_gives_seed_003s_top_speeds_and_the_svg_is_written() {
 
 #[test]
 fn pursuit_sweep_json_has_a_row_per_period() {
-    let out = host_bench()
-        .args(["pursuit-sweep", "--json", "--duration", "10"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let args = ["pursuit-sweep", "--json", "--duration", "10"];
+    let v = json_of(&args.map(std::ffi::OsStr::new));
     let rows = v["rows"].as_array().expect("rows");
     assert_eq!(rows.len(), 16);
     for (r, tau) in rows.iter().zip(host_bench::eval::pursuit_sweep::PERIODS_S) {

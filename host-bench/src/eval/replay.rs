@@ -200,7 +200,17 @@ fn lut_origin(stream: &TickStream) -> (u32, u32) {
 pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -> Result<Score> {
     let (mut estimator, n) = estimator(robot, stream, algorithm, mode)?;
     let abs_index = robot.odometry_abs_index();
-    drive(robot, stream, mode, n, abs_index, estimator.as_mut())?.finish(algorithm)
+    let samples = Samples::Changed;
+    drive(
+        robot,
+        stream,
+        mode,
+        n,
+        abs_index,
+        estimator.as_mut(),
+        samples,
+    )?
+    .finish(algorithm)
 }
 
 /// `algorithm` for `robot`, started at the stream's first truth row, and its encoder count.
@@ -284,26 +294,7 @@ fn estimator(
     Ok((estimator, n))
 }
 
-/// Walk the stream in time order: ticks into the trackers (and the estimator), updates at
-/// every tick instant (time stamps) or every sample (counts), scores at every truth row.
-///
-/// With counts, a sample that sees the same counts and absolute reading as the update before
-/// it is skipped (`Samples::Changed`): every method's update is a function of those readings
-/// alone there, so it would return the same pose, and most samples at 10 kHz fall between two
-/// ticks. `replay_skips_only_samples_that_change_nothing` checks it bit for bit against
-/// `Samples::Every`, which is what the slave does.
-fn drive(
-    robot: &Robot,
-    stream: &TickStream,
-    mode: Mode,
-    n: usize,
-    abs_index: Option<usize>,
-    est: &mut dyn Estimator,
-) -> Result<Scorer> {
-    drive_samples(robot, stream, mode, n, abs_index, est, Samples::Changed)
-}
-
-/// Which fixed-rate samples [`drive_samples`] hands to the estimator.
+/// Which fixed-rate samples [`drive`] hands to the estimator.
 #[derive(Clone, Copy, PartialEq)]
 enum Samples {
     /// Every one, as the slave's fixed-rate update does.
@@ -312,7 +303,15 @@ enum Samples {
     Changed,
 }
 
-fn drive_samples(
+/// Walk the stream in time order: ticks into the trackers (and the estimator), updates at
+/// every tick instant (time stamps) or every sample (counts), scores at every truth row.
+///
+/// With counts, `Samples::Changed` skips a sample that sees the same counts and absolute
+/// reading as the update before it: every method's update is a function of those readings
+/// alone there, so it would return the same pose, and most samples at 10 kHz fall between two
+/// ticks. `replay_skips_only_samples_that_change_nothing` checks it bit for bit against
+/// `Samples::Every`, which is what the slave does.
+fn drive(
     robot: &Robot,
     stream: &TickStream,
     mode: Mode,
@@ -498,7 +497,7 @@ mod tests {
                     let abs = r.odometry_abs_index();
                     let run = |samples| {
                         let (mut est, n) = estimator(&r, &stream, algorithm, mode).unwrap();
-                        drive_samples(&r, &stream, mode, n, abs, est.as_mut(), samples).unwrap()
+                        drive(&r, &stream, mode, n, abs, est.as_mut(), samples).unwrap()
                     };
                     let (every, changed) = (run(Samples::Every), run(Samples::Changed));
                     assert!(every.track.len() > 100, "{file} {name}");
