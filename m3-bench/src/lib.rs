@@ -103,6 +103,15 @@ fn omni3() -> Layout {
         .expect("seed 000's triangle is a valid layout")
 }
 
+/// The slave's estimator at time 0, every encoder at count 0 (its A/B levels those of count
+/// 0), the absolute encoder's pins at `abs_levels`.
+fn at_rest(layout: &Layout, sensor: SensorMode, abs_levels: u16) -> SlaveEstimator {
+    let n = layout.encoders();
+    let levels = [QuadratureDecoder::levels_at(0); 4];
+    SlaveEstimator::new(layout, sensor, 0, &[0; 4][..n], &levels[..n], abs_levels)
+        .expect("a layout the slave takes")
+}
+
 /// Edges of every wheel rolling forward at its own steady rate (wheel j every 250 + 40·j µs),
 /// in time order, with an update every millisecond: each wheel's first [`PLACING_TICKS`] edges
 /// measured as `placing`, then [`CALLS`] edges as `edge` and [`CALLS`] updates as `update` once
@@ -115,16 +124,7 @@ fn run_layout(
     update: Case,
 ) {
     let n = layout.encoders();
-    let levels = [QuadratureDecoder::levels_at(0); 4];
-    let mut est = SlaveEstimator::new(
-        layout,
-        SensorMode::TickTimestamps,
-        0,
-        &[0; 4][..n],
-        &levels[..n],
-        abs_levels,
-    )
-    .expect("a layout the slave takes");
+    let mut est = at_rest(layout, SensorMode::TickTimestamps, abs_levels);
     let period_us = |j: usize| 250 + 40 * j as u64;
     let mut counts = [0i64; 4];
     let mut next_us: [u64; 4] = core::array::from_fn(|j| 100 + 17 * j as u64);
@@ -174,16 +174,7 @@ fn run_layout(
 /// Sampled counters, every wheel a few counts further at each update.
 fn counts_updates(meter: &mut dyn Meter, layout: &Layout, abs_levels: u16, update: Case) {
     let n = layout.encoders();
-    let levels = [0u8; 4];
-    let mut est = SlaveEstimator::new(
-        layout,
-        SensorMode::Counts,
-        0,
-        &[0; 4][..n],
-        &levels[..n],
-        abs_levels,
-    )
-    .expect("a layout the slave takes");
+    let mut est = at_rest(layout, SensorMode::Counts, abs_levels);
     let mut counts = [0i64; 4];
     for k in 1..=CALLS as u64 {
         for (j, c) in counts.iter_mut().enumerate().take(n) {

@@ -65,30 +65,31 @@ pub fn pursue(
     speed: f64,
     p: &PursuitParams,
 ) -> (f64, f64, f64) {
-    let (ex, ey) = (target.0 - pos.0, target.1 - pos.1);
-    let dist = libm::hypot(ex, ey);
     // max/min rather than clamp: clamp's check of its run-time bounds would pull float
     // formatting (over 12 KiB) into the master's 64 KiB image.
     let omega = (p.heading_gain * wrap_angle(heading_ref - heading))
         .max(-p.max_spin)
         .min(p.max_spin);
-    if dist < 1e-9 {
-        return (0.0, 0.0, omega);
-    }
-    let v = speed * (dist / p.slow_radius).min(1.0);
-    (v * ex / dist, v * ey / dist, omega)
+    let (vx, vy) = towards(pos, target, |dist| speed * (dist / p.slow_radius).min(1.0));
+    (vx, vy, omega)
 }
 
 /// Seed 004's Euler pursuit step: the field velocity that heads straight at `target` at
 /// `speed`, whatever the distance (the paper steps V_t·τ each period, so near the target it
 /// overshoots by up to that step). Zero on the target itself.
 pub fn euler_step(pos: (f64, f64), target: (f64, f64), speed: f64) -> (f64, f64) {
+    towards(pos, target, |_| speed)
+}
+
+/// The field velocity straight at `target` at the speed `speed_at(distance)`; zero on it.
+fn towards(pos: (f64, f64), target: (f64, f64), speed_at: impl Fn(f64) -> f64) -> (f64, f64) {
     let (ex, ey) = (target.0 - pos.0, target.1 - pos.1);
     let dist = libm::hypot(ex, ey);
     if dist < 1e-9 {
         return (0.0, 0.0);
     }
-    (speed * ex / dist, speed * ey / dist)
+    let v = speed_at(dist);
+    (v * ex / dist, v * ey / dist)
 }
 
 /// Rotate a field-frame velocity into the body frame of a robot at `heading`.

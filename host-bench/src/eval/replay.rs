@@ -200,17 +200,8 @@ fn lut_origin(stream: &TickStream) -> (u32, u32) {
 pub fn replay(robot: &Robot, stream: &TickStream, algorithm: &str, mode: Mode) -> Result<Score> {
     let (mut estimator, n) = estimator(robot, stream, algorithm, mode)?;
     let abs_index = robot.odometry_abs_index();
-    let samples = Samples::Changed;
-    drive(
-        robot,
-        stream,
-        mode,
-        n,
-        abs_index,
-        estimator.as_mut(),
-        samples,
-    )?
-    .finish(algorithm)
+    let est = estimator.as_mut();
+    drive(robot, stream, mode, n, abs_index, est, Samples::Changed)?.finish(algorithm)
 }
 
 /// `algorithm` for `robot`, started at the stream's first truth row, and its encoder count.
@@ -331,6 +322,7 @@ fn drive(
     let mut pose = None;
     // A reading (a count or the absolute encoder) changed since the last update.
     let mut changed = true;
+    let every = samples == Samples::Every;
     let mut score = Scorer::default();
     let events = &stream.events;
     let mut i = 0;
@@ -339,7 +331,7 @@ fn drive(
         // Fixed-rate samples strictly before this instant see the counts as they were.
         if let (Some(p), Some(next)) = (period_ns, next_sample.as_mut()) {
             while *next < t {
-                if changed || samples == Samples::Every {
+                if changed || every {
                     pose = Some(est.update(*next, &wheels, false));
                     changed = false;
                 }
@@ -358,11 +350,7 @@ fn drive(
                         robot.name
                     );
                 }
-                let placing = wheels[e].placing();
-                wheels[e].tick(t, step);
-                if placing {
-                    robot_math::ticks::place_together(&mut wheels[..n]);
-                }
+                robot_math::ticks::tick_wheel(&mut wheels[..n], e, t, step);
                 est.tick(t, e, step);
                 ticked = true;
                 changed = true;
@@ -385,7 +373,7 @@ fn drive(
                 if regular {
                     *next += p;
                 }
-                (regular && (changed || samples == Samples::Every)) || has_truth
+                (regular && (changed || every)) || has_truth
             }
             _ => ticked || has_truth,
         };

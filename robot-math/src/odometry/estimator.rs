@@ -5,7 +5,7 @@ use crate::arc::ArcOdometry;
 use crate::carriage::CarriageExact;
 use crate::exact::{ExactOdometry, FixedPose, MAX_ENCODERS};
 use crate::lut::LutOdometry;
-use crate::ticks::{counts_as_ticks, place_together, TickTracker};
+use crate::ticks::{counts_as_ticks, tick_wheel, TickTracker};
 use crate::timing::TimingOdometry;
 use crate::wheelset::GeometryError;
 use crate::Pose2;
@@ -290,20 +290,18 @@ impl Odometry {
         {
             return false;
         }
-        let (Some(t), Some(c)) = (self.trackers.get_mut(encoder), self.counts.get_mut(encoder))
+        let n = self.layout.encoders();
+        let (Some(wheels), Some(c)) = (self.trackers.get_mut(..n), self.counts.get_mut(encoder))
         else {
             return false;
         };
-        let placing = t.placing();
-        t.tick(t_ns, step);
-        *c = t.count();
-        // Only a wheel's first ticks move where the wheels are placed: later ticks skip this.
-        if placing {
-            if let Some(wheels) = self.trackers.get_mut(..self.layout.encoders()) {
-                place_together(wheels);
+        match tick_wheel(wheels, encoder, t_ns, step) {
+            Some(count) => {
+                *c = count;
+                true
             }
+            None => false,
         }
-        true
     }
 
     /// The encoders' cumulative whole counts ([`SensorKind::Counts`]; ignored with ticks).

@@ -367,13 +367,28 @@ mod tests {
     }
 }
 
+/// A tick of wheel `j` of `wheels` at `t_ns`, `step` = ±1; while that wheel's first ticks
+/// are being gathered, every wheel is placed again ([`place_together`]), and after that the
+/// tick costs nothing more. Integer-only. Returns the wheel's count, or `None` for a wheel
+/// that is not in `wheels`.
+pub fn tick_wheel(wheels: &mut [TickTracker], j: usize, t_ns: u64, step: i8) -> Option<i64> {
+    let w = wheels.get_mut(j)?;
+    let placing = w.placing();
+    w.tick(t_ns, step);
+    let count = w.count();
+    if placing {
+        place_together(wheels);
+    }
+    Some(count)
+}
+
 /// Wheels that their own first ticks could not place started moving together: after a rest
 /// the body starts as one, so an abrupt start (whose instant no single wheel can tell) must lie
 /// in every such wheel's window `[t1 − first interval, t1]`. Each is placed as if it started
 /// in the middle of their common window; a wheel's error is then at most half the window at
 /// its own speed, under half a count, and the fastest wheel narrows the window for all.
-/// Call after a tick of a wheel that was [`placing`](TickTracker::placing) before it: no
-/// other tick changes a window. Integer-only.
+/// Called by [`tick_wheel`] after a tick of a wheel that was
+/// [`placing`](TickTracker::placing) before it: no other tick changes a window. Integer-only.
 pub fn place_together(trackers: &mut [TickTracker]) {
     let (mut lo, mut hi, mut any) = (0u64, u64::MAX, false);
     for w in trackers.iter().filter_map(TickTracker::start_window) {
