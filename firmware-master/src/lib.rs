@@ -11,6 +11,7 @@
 #![cfg_attr(not(test), no_std)]
 
 pub mod controller;
+pub mod drive_setup;
 pub mod ports;
 mod relay;
 mod tasks;
@@ -18,6 +19,7 @@ mod tasks;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
+use protocol::serial::DriveGeometry;
 use robot_math::pursuit::PursuitParams;
 
 use controller::Controller;
@@ -26,12 +28,9 @@ pub use tasks::run;
 /// Robot geometry, rates and safety limits of the master.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MasterConfig {
-    /// Centre to drive-wheel contact distance, metres (seed 003's d).
-    pub wheel_distance: f64,
-    /// Highest wheel speed the controller may command, m/s.
-    pub v_max: f64,
-    /// Wheel speed at 100 % duty, m/s (the motors' feed-forward constant).
-    pub speed_at_full_duty: f64,
+    /// The drive at power-on: wheel layout, limits, motor constant and tracking gains. A host
+    /// may send another (`HostToMaster::SetDrive`), so one image serves every robot.
+    pub drive: DriveGeometry,
     pub pursuit: PursuitParams,
     /// Within this distance of a stopped target, and `arrive_heading_tolerance` of its
     /// heading, the robot has arrived: the motors switch off and it holds, metres.
@@ -85,9 +84,7 @@ const fn parse_u8(s: &str) -> u8 {
 
 impl MasterConfig {
     pub const DEFAULT: MasterConfig = MasterConfig {
-        wheel_distance: 0.22,
-        v_max: 1.0,
-        speed_at_full_duty: 1.0,
+        drive: drive_setup::SEED_004_DRIVE,
         pursuit: PursuitParams {
             heading_gain: 4.0,
             slow_radius: 0.15,
@@ -107,12 +104,6 @@ impl MasterConfig {
         baud: 115_200,
         uid: [0; 12],
     };
-
-    /// Fastest the robot can translate in every direction (seed 003: v_max·√3/2 is the worst
-    /// direction; pursuit requests above the best case 2·v_max/√3 are refused outright).
-    pub fn max_robot_speed(&self) -> f64 {
-        2.0 * self.v_max / libm::sqrt(3.0)
-    }
 }
 
 /// State shared by the master's tasks. `const`-constructible for a `static` on the board.

@@ -25,8 +25,9 @@ enum Command {
     /// Run both boards' firmware in-process against a simulated robot (no hardware needed)
     /// and report odometry accuracy against ground truth.
     Emulate {
-        /// Built-in scenario to run.
-        #[arg(long, default_value = "seed004-pursuit", value_parser = clap::builder::PossibleValuesParser::new(Scenario::BUILTIN_NAMES))]
+        /// The run: a scenario file (`scenarios/*.toml`, docs/scenario-format.md) or the
+        /// built-in seed004-pursuit.
+        #[arg(long, value_name = "FILE|NAME", default_value = "seed004-pursuit")]
         scenario: String,
         /// Simulated seconds to run [default: the scenario's own duration, 12 s for seed004-pursuit].
         #[arg(long, allow_negative_numbers = true)]
@@ -208,8 +209,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             fault_slave_off_at,
             fault_host_silent_after,
         } => {
-            let scenario = Scenario::builtin(&scenario)
-                .ok_or_else(|| anyhow::anyhow!("unknown scenario {scenario:?}"))?;
+            let scenario = match Scenario::builtin(&scenario) {
+                Some(s) => s,
+                None if !std::path::Path::new(&scenario).exists() => anyhow::bail!(
+                    "--scenario {scenario}: no such file, and no built-in of that name (the \
+                     built-ins: {}; the files: scenarios/*.toml)",
+                    Scenario::BUILTIN_NAMES.join(", ")
+                ),
+                None => host_bench::formats::scenario::load(std::path::Path::new(&scenario))?,
+            };
             let mut opts = emulator::Options::new(&scenario);
             if let Some(d) = duration {
                 opts.duration = d;
@@ -224,9 +232,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 // The board's configuration.
                 _ => {}
             }
-            opts.encoder_phase = encoder_phase;
-            opts.faults.slave_off_at = fault_slave_off_at;
-            opts.faults.host_silent_after = fault_host_silent_after;
+            if encoder_phase.is_some() {
+                opts.encoder_phase = encoder_phase;
+            }
+            if fault_slave_off_at.is_some() {
+                opts.faults.slave_off_at = fault_slave_off_at;
+            }
+            if fault_host_silent_after.is_some() {
+                opts.faults.host_silent_after = fault_host_silent_after;
+            }
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }

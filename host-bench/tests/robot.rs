@@ -49,11 +49,61 @@ fn every_robot_file_loads_and_is_named_after_its_file() {
             "seed000-0.4mm",
             "seed000-0.8mm",
             "seed001",
+            "seed002",
             "seed003",
             "seed004",
             "skewed3"
         ]
     );
+}
+
+#[test]
+fn the_master_drives_seed_002s_chassis_and_seed_004s_omni_wheels() {
+    use protocol::serial::DriveKind;
+    let g = seed("seed002.toml").drive_geometry().unwrap();
+    assert_eq!(
+        g.kind,
+        DriveKind::OffsetDiff {
+            y_left_um: 150_000,
+            y_right_um: -150_000,
+            offset_um: 150_000
+        }
+    );
+    assert_eq!(g.v_max_um_s, 800_000);
+    // The file and the boards' power-on robot are the same robot.
+    let seed004 = seed("seed004.toml");
+    assert_eq!(
+        seed004.drive_geometry().unwrap(),
+        firmware_master::drive_setup::SEED_004_DRIVE
+    );
+    assert_eq!(
+        seed004.odometry_layout().unwrap(),
+        robot_math::odometry::Layout::SEED_004
+    );
+    // An axle without a tracked point, or with more wheels than the master drives.
+    for file in ["seed001.toml", "omni4-ls.toml", "seed000-0.1mm.toml"] {
+        let e = seed(file).drive_geometry().unwrap_err().to_string();
+        assert!(
+            e.contains("robot seed0") || e.contains("robot omni4"),
+            "{file}: {e}"
+        );
+    }
+    assert!(seed("seed001.toml")
+        .drive_geometry()
+        .unwrap_err()
+        .to_string()
+        .contains("[tracked_point]"));
+}
+
+#[test]
+fn a_tracked_point_on_the_axle_is_refused_where_it_is() {
+    let text = "format = \"omnibench robot v1\"\nname = \"x\"\n[tracked_point]\nx_m = 0\n";
+    let e = parse(text).unwrap_err();
+    assert_eq!(
+        (e.line, e.key.as_deref()),
+        (Some(4), Some("tracked_point.x_m"))
+    );
+    assert!(e.message.contains("l != 0"), "{e}");
 }
 
 #[test]

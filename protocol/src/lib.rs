@@ -30,7 +30,7 @@ pub use bytes::Bytes;
 pub use units::{metres_to_um, BinaryAngle, Point, Pose};
 
 /// Version of the wire protocol described by this crate. Bumped on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// A CRC-32 over the postcard schemas of every message type in this crate.
 ///

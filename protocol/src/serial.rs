@@ -46,6 +46,59 @@ pub enum HostToMaster {
     Events(DataFrame),
     /// Acknowledges the master's report stream.
     ReportsAck(Ack),
+    /// Track a time-parametrised path (seed 002's law): where the tracked point should be
+    /// now and how it moves. Send one every few control periods; between samples the master
+    /// extrapolates with the velocity. Stale after the host timeout: the motors stop.
+    Track(TrackPoint),
+    /// The drive this image runs from now on (wheel layout, limits, tracking gains): one
+    /// firmware serves every robot. Stops any motion; refused with `InvalidDrive`.
+    SetDrive(DriveGeometry),
+}
+
+/// One sample of a reference path for the tracked point (seed 002's point A; an omni robot's
+/// reference point), in the field frame, valid from the moment it arrives.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackPoint {
+    pub position: Point,
+    /// The reference velocity, fed forward and used to extrapolate, µm/s.
+    pub velocity_um_s: [i32; 2],
+    /// Heading to hold and its rate (platforms that choose their heading: omni).
+    pub heading: BinaryAngle,
+    pub omega_urad_s: i32,
+}
+
+/// The driven platform.
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DriveKind {
+    /// Seed 003's three omni wheels at distance `d` from the centre.
+    Omni3 { d_um: u32 },
+    /// Seed 002's differential chassis: wheels at lateral positions `y_left`, `y_right` on the
+    /// axle, tracked point `offset` ahead of it (non-zero).
+    OffsetDiff {
+        y_left_um: i32,
+        y_right_um: i32,
+        offset_um: i32,
+    },
+}
+
+/// Drive geometry, limits and gains, in integers (thousandths for the gains).
+#[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriveGeometry {
+    pub kind: DriveKind,
+    pub v_max_um_s: u32,
+    /// Wheel speed at full duty (the motors' feed-forward constant), µm/s.
+    pub speed_at_full_duty_um_s: u32,
+    /// Seed 002's gains, thousandths: position gains in 1/s (forward = the paper's k2,
+    /// lateral = k1), feed-forward and damping shares.
+    pub k_forward_milli: u32,
+    pub k_lateral_milli: u32,
+    pub ff_forward_milli: i32,
+    pub ff_lateral_milli: i32,
+    pub diff_forward_milli: i32,
+    pub diff_lateral_milli: i32,
 }
 
 /// What the master says about itself and its slave at the handshake.
@@ -112,6 +165,9 @@ pub enum RejectReason {
     InvalidTarget,
     /// Commands for the slave arrive faster than it applies them.
     Busy,
+    /// A drive geometry the master cannot use (wheels not apart, tracked point on the axle,
+    /// a limit or gain not positive).
+    InvalidDrive,
 }
 
 /// The master's periodic report.

@@ -13,16 +13,19 @@
 
 pub mod arc;
 pub mod carriage;
+pub mod drive;
 pub mod exact;
 pub mod fixed;
 pub mod lut;
 pub mod odometry;
+pub mod offset_diff;
 pub mod omni3;
 pub mod pursuit;
 pub mod se2;
 pub mod sensors;
 pub mod ticks;
 pub mod timing;
+pub mod tracking;
 pub mod wheel;
 pub mod wheelset;
 

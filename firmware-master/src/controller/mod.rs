@@ -9,10 +9,13 @@ use protocol::serial::{
 };
 use protocol::spi::{MasterFrame, SlaveCommand, SlaveFrame, SpiFrameError};
 
+use crate::drive_setup::DriveSetup;
 use crate::relay::Relay;
+use protocol::serial::TrackPoint;
 use protocol::{Pose, PROTOCOL_VERSION};
-use robot_math::omni3::Omni3;
 use robot_math::pursuit::{euler_step, field_to_body, pursue, SegmentTarget};
+use robot_math::se2::wrap_angle;
+use robot_math::tracking::{PointReference, PointTracker};
 use robot_math::{Pose2, Twist};
 
 /// Slave commands waiting for the slave, oldest first: room for a whole robot upload (two
@@ -27,17 +30,90 @@ pub enum Drive {
     Duty([i16; 3]),
 }
 
-#[derive(Clone, Copy, Debug)]
-struct Goal {
-    target: SegmentTarget,
-    robot_speed: f64,
+/// What the robot is asked to do.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Goal {
+    /// Seed 004: head at a target moving along a segment.
+    Pursue {
+        target: SegmentTarget,
+        robot_speed: f64,
+        heading: f64,
+    },
+    /// Seed 002: track a time-parametrised path, one sample at a time.
+    Track {
+        sample: TrackPoint,
+        /// When the sample arrived (it is extrapolated from there).
+        at: Instant,
+    },
+}
+
+/// Where the tracked point should be now, and how it moves.
+struct Reference {
+    point: PointReference,
     heading: f64,
+    omega: f64,
+    /// Not moving: the robot may arrive and hold.
+    standing: bool,
+}
+
+impl Goal {
+    fn reference(&self, now: Instant) -> Reference {
+        match *self {
+            Goal::Pursue {
+                target, heading, ..
+            } => {
+                let (position, standing) = target.position(secs(now));
+                Reference {
+                    point: PointReference {
+                        position,
+                        velocity: (0.0, 0.0),
+                    },
+                    heading,
+                    omega: 0.0,
+                    standing,
+                }
+            }
+            Goal::Track { sample, at } => {
+                let dt = now.saturating_duration_since(at).as_micros() as f64 * 1e-6;
+                let (x, y) = sample.position.to_metres();
+                let v = sample.velocity_um_s.map(|v| v as f64 * 1e-6);
+                let omega = sample.omega_urad_s as f64 * 1e-6;
+                Reference {
+                    point: PointReference {
+                        position: (x + v[0] * dt, y + v[1] * dt),
+                        velocity: (v[0], v[1]),
+                    },
+                    heading: sample.heading.to_radians() + omega * dt,
+                    omega,
+                    standing: v == [0.0; 2] && omega == 0.0,
+                }
+            }
+        }
+    }
+
+    /// A goal that stands still at one place and heading.
+    fn standing_at(&self) -> Option<(f64, f64, f64)> {
+        match *self {
+            Goal::Pursue {
+                target, heading, ..
+            } => (target.from == target.to).then_some((target.to.0, target.to.1, heading)),
+            Goal::Track { sample, .. } => {
+                let (x, y) = sample.position.to_metres();
+                (sample.velocity_um_s == [0; 2] && sample.omega_urad_s == 0)
+                    .then(|| (x, y, sample.heading.to_radians()))
+            }
+        }
+    }
 }
 
 pub struct Controller {
     cfg: MasterConfig,
-    omni: Omni3,
+    drive: DriveSetup,
     goal: Option<Goal>,
+    /// Seed 002's law and its memory; the tracked point's position at the last control step,
+    /// for the velocity it measured since.
+    tracker: PointTracker,
+    last_point: Option<((f64, f64), Instant)>,
     /// Arrived at a stopped target: the motors are off until the robot is pushed past
     /// [`MasterConfig::hold_release`] or a new target comes.
     holding: bool,
@@ -80,12 +156,15 @@ fn us_since(now: Instant, then: Option<Instant>) -> u64 {
 }
 
 impl Controller {
-    /// `None` when the configured geometry is impossible (d or v_max not positive).
+    /// `None` when the configured drive is impossible ([`DriveSetup::from_geometry`]).
     pub fn new(cfg: MasterConfig) -> Option<Self> {
+        let drive = DriveSetup::from_geometry(&cfg.drive)?;
         Some(Controller {
-            omni: Omni3::new(cfg.wheel_distance, cfg.v_max)?,
+            drive,
             cfg,
             goal: None,
+            tracker: PointTracker::new(drive.gains),
+            last_point: None,
             holding: false,
             euler: None,
             status: 0,
@@ -137,26 +216,34 @@ impl Controller {
             HostToMaster::SetOdometry(a) => self.queue_for_slave(SlaveCommand::SetAlgorithm(a)),
             HostToMaster::FollowTarget(t) => match self.validate(now, &t) {
                 Some(goal) => {
-                    // The same standing target again (a host that refreshes its target) keeps
-                    // a hold; anything else starts over.
-                    let standing = |g: &Goal| g.target.from == g.target.to;
-                    let same = self.goal.is_some_and(|old| {
-                        standing(&old)
-                            && standing(&goal)
-                            && old.target.to == goal.target.to
-                            && old.heading == goal.heading
-                    });
-                    self.goal = Some(goal);
-                    if same {
-                        return None;
-                    }
-                    self.holding = false;
-                    self.euler = None;
-                    self.status &= !(status::ARRIVED | status::COMMAND_REJECTED);
-                    self.status |= status::FOLLOWING;
+                    self.set_goal(goal);
                     None
                 }
                 None => Some(self.reject(RejectReason::InvalidTarget)),
+            },
+            HostToMaster::Track(sample) => {
+                let speed = libm::hypot(
+                    sample.velocity_um_s[0] as f64,
+                    sample.velocity_um_s[1] as f64,
+                ) * 1e-6;
+                if speed > self.drive.kinematics.max_speed() {
+                    return Some(self.reject(RejectReason::InvalidTarget));
+                }
+                let was_tracking = matches!(self.goal, Some(Goal::Track { .. }));
+                self.set_goal(Goal::Track { sample, at: now });
+                if !was_tracking {
+                    self.tracker.reset();
+                }
+                None
+            }
+            HostToMaster::SetDrive(g) => match DriveSetup::from_geometry(&g) {
+                Some(drive) => {
+                    self.stop_following(0);
+                    self.drive = drive;
+                    self.tracker = PointTracker::new(drive.gains);
+                    None
+                }
+                None => Some(self.reject(RejectReason::InvalidDrive)),
             },
             HostToMaster::Stop => {
                 self.stop_following(0);
@@ -171,16 +258,31 @@ impl Controller {
         self.counters.serial_rejected = self.counters.serial_rejected.wrapping_add(1);
     }
 
+    /// Take a new goal. The same standing goal again (a host that refreshes its target, or
+    /// keeps sending a path's last sample) keeps a hold; anything else starts over.
+    fn set_goal(&mut self, goal: Goal) {
+        let same = matches!(
+            (self.goal.and_then(|g| g.standing_at()), goal.standing_at()),
+            (Some(a), Some(b)) if a == b
+        );
+        self.goal = Some(goal);
+        if same {
+            return;
+        }
+        self.holding = false;
+        self.euler = None;
+        self.status &= !(status::ARRIVED | status::COMMAND_REJECTED);
+        self.status |= status::FOLLOWING;
+    }
+
     fn validate(&self, now: Instant, t: &MovingTarget) -> Option<Goal> {
         let robot_speed = t.robot_speed_um_s as f64 * 1e-6;
         let target_speed = t.target_speed_um_s as f64 * 1e-6;
-        if !(robot_speed > 0.0 && robot_speed <= self.cfg.max_robot_speed()) {
+        let max = self.drive.kinematics.max_speed();
+        if !(robot_speed > 0.0 && robot_speed <= max) || target_speed > max {
             return None;
         }
-        if target_speed > self.cfg.max_robot_speed() {
-            return None;
-        }
-        Some(Goal {
+        Some(Goal::Pursue {
             target: SegmentTarget {
                 from: t.from.to_metres(),
                 to: t.to.to_metres(),
@@ -331,17 +433,31 @@ impl Controller {
             return self.halt();
         };
 
-        let (target, stopped) = goal.target.position(secs(now));
-        let off = libm::hypot(target.0 - est.x, target.1 - est.y);
-        let turned = libm::fabs(robot_math::se2::wrap_angle(goal.heading - est.theta));
-        if stopped && off < self.cfg.arrive_tolerance && turned < self.cfg.arrive_heading_tolerance
+        let mut r = goal.reference(now);
+        // Seed 002's chassis cannot turn with its tracked point still (A would move sideways):
+        // a path that only turns stands still for it.
+        if !self.drive.kinematics.holds_heading() && r.point.velocity == (0.0, 0.0) {
+            r.standing = true;
+        }
+        let point = self.tracked_point(&est);
+        let target = r.point.position;
+        let off = libm::hypot(target.0 - point.0, target.1 - point.1);
+        // A chassis that cannot choose its heading arrives by position alone.
+        let turned = if self.drive.kinematics.holds_heading() {
+            libm::fabs(wrap_angle(r.heading - est.theta))
+        } else {
+            0.0
+        };
+        if r.standing
+            && off < self.cfg.arrive_tolerance
+            && turned < self.cfg.arrive_heading_tolerance
         {
             self.holding = true;
         }
         // Holding still at the goal, without chasing the sensors' last count: the motors stay
         // off until the robot is pushed out of the release band (or the target moves on).
         if self.holding
-            && stopped
+            && r.standing
             && off < self.cfg.hold_release
             && turned < self.cfg.hold_heading_release
         {
@@ -352,21 +468,87 @@ impl Controller {
         }
         self.holding = false;
         self.status &= !status::ARRIVED;
+        let (forward, left, omega) = match goal {
+            Goal::Pursue {
+                robot_speed,
+                heading,
+                ..
+            } => self.pursuit_command(now, point, est.theta, target, heading, robot_speed),
+            Goal::Track { .. } => {
+                let measured = self.point_velocity_since_last(now, point, est.theta);
+                let (f, l) = self.tracker.command(&r.point, point, est.theta, measured);
+                let p = &self.cfg.pursuit;
+                let omega = (r.omega + p.heading_gain * wrap_angle(r.heading - est.theta))
+                    .max(-p.max_spin)
+                    .min(p.max_spin);
+                (f, l, omega)
+            }
+        };
+        let (wheels, twist) = self.drive.kinematics.command(forward, left, omega);
+        // The damping term compares with what was sent, after saturation.
+        self.tracker
+            .sent(self.drive.kinematics.point_velocity(twist));
+        self.cmd_twist = twist;
+        self.wheel_cmd = wheels;
+        let full = self.drive.speed_at_full_duty;
+        self.duty = wheels.map(|w| {
+            let d = libm::round(w / full * 1000.0);
+            d.clamp(-1000.0, 1000.0) as i16
+        });
+        self.status |= status::MOTORS_ON;
+        Drive::Duty(self.duty)
+    }
+
+    /// Where the tracked point (seed 002's A; an omni robot's reference point) is.
+    fn tracked_point(&self, est: &Pose2) -> (f64, f64) {
+        let (px, py) = self.drive.kinematics.tracked_point();
+        let (s, c) = (libm::sin(est.theta), libm::cos(est.theta));
+        (est.x + c * px - s * py, est.y + s * px + c * py)
+    }
+
+    /// The tracked point's robot-frame velocity since the last control step (zero at first).
+    fn point_velocity_since_last(
+        &mut self,
+        now: Instant,
+        point: (f64, f64),
+        heading: f64,
+    ) -> (f64, f64) {
+        let last = self.last_point.replace((point, now));
+        let Some((p0, t0)) = last else {
+            return (0.0, 0.0);
+        };
+        let dt = now.saturating_duration_since(t0).as_micros() as f64 * 1e-6;
+        if dt <= 0.0 {
+            return (0.0, 0.0);
+        }
+        field_to_body((point.0 - p0.0) / dt, (point.1 - p0.1) / dt, heading)
+    }
+
+    /// Seed 004's pursuit, as a robot-frame velocity of the tracked point and a spin.
+    fn pursuit_command(
+        &mut self,
+        now: Instant,
+        point: (f64, f64),
+        theta: f64,
+        target: (f64, f64),
+        heading: f64,
+        robot_speed: f64,
+    ) -> (f64, f64, f64) {
         let (mut vx, mut vy, omega) = pursue(
-            (est.x, est.y),
-            est.theta,
+            point,
+            theta,
             target,
-            goal.heading,
-            goal.robot_speed,
+            heading,
+            robot_speed,
             &self.cfg.pursuit,
         );
         let period = self.cfg.pursuit.period_s;
         if period > 0.0 {
             // Seed 004: the direction is taken once per period and held, at full speed.
-            let held = match self.euler {
+            (vx, vy) = match self.euler {
                 Some((v, until)) if now < until => v,
                 _ => {
-                    let v = euler_step((est.x, est.y), target, goal.robot_speed);
+                    let v = euler_step(point, target, robot_speed);
                     // Periods beyond an hour are a configuration error; saturate, never panic.
                     let hold = Duration::from_micros((period.min(3600.0) * 1e6) as u64);
                     let until = now.checked_add(hold).unwrap_or(Instant::MAX);
@@ -374,21 +556,14 @@ impl Controller {
                     v
                 }
             };
-            (vx, vy) = held;
         }
-        let (bx, by) = field_to_body(vx, vy, est.theta);
-        let (wheels, _) = self.omni.wheel_speeds_saturated(Twist::new(bx, by, omega));
-        self.cmd_twist = self.omni.twist(wheels);
-        self.wheel_cmd = wheels;
-        self.duty = wheels.map(|w| {
-            let d = libm::round(w / self.cfg.speed_at_full_duty * 1000.0);
-            d.clamp(-1000.0, 1000.0) as i16
-        });
-        self.status |= status::MOTORS_ON;
-        Drive::Duty(self.duty)
+        let (f, l) = field_to_body(vx, vy, theta);
+        (f, l, omega)
     }
 
     fn halt(&mut self) -> Drive {
+        self.last_point = None;
+        self.tracker.reset();
         self.cmd_twist = Twist::default();
         self.wheel_cmd = [0.0; 3];
         self.duty = [0; 3];

@@ -408,6 +408,80 @@ fn crc_failures_are_counted_not_used() {
 fn default_config_is_valid() {
     assert!(Controller::new(MasterConfig::DEFAULT).is_some());
     let mut bad = MasterConfig::DEFAULT;
-    bad.wheel_distance = 0.0;
+    bad.drive.v_max_um_s = 0;
     assert!(Controller::new(bad).is_none());
+}
+
+fn seed_002_drive() -> protocol::serial::DriveGeometry {
+    protocol::serial::DriveGeometry {
+        kind: protocol::serial::DriveKind::OffsetDiff {
+            y_left_um: 150_000,
+            y_right_um: -150_000,
+            offset_um: 150_000,
+        },
+        v_max_um_s: 800_000,
+        speed_at_full_duty_um_s: 800_000,
+        ..crate::drive_setup::SEED_004_DRIVE
+    }
+}
+
+fn track(x_um: i32, vx_um_s: i32) -> HostToMaster {
+    HostToMaster::Track(protocol::serial::TrackPoint {
+        position: Point { x_um, y_um: 0 },
+        velocity_um_s: [vx_um_s, 0],
+        heading: BinaryAngle(0x4000_0000),
+        omega_urad_s: 0,
+    })
+}
+
+#[test]
+fn an_impossible_drive_is_refused_and_stops_the_motors() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    let mut bad = seed_002_drive();
+    bad.kind = protocol::serial::DriveKind::OffsetDiff {
+        y_left_um: 150_000,
+        y_right_um: -150_000,
+        offset_um: 0,
+    };
+    assert_eq!(
+        c.on_host_message(t(1), HostToMaster::SetDrive(bad)),
+        Some(MasterToHost::Rejected(RejectReason::InvalidDrive))
+    );
+    assert_eq!(c.status() & status::FOLLOWING, 0);
+    assert_eq!(c.control(t(2)), Drive::Stop);
+}
+
+/// Seed 002's chassis, tracked point 0.15 m ahead of the slave's pose: a path sample ahead of
+/// A drives both wheels forward alike and leaves motor 3 off; a standing sample on A holds,
+/// whatever the heading the sample asks (the chassis cannot choose it).
+#[test]
+fn seed_002s_chassis_tracks_its_point_a_and_holds_on_it() {
+    let mut c = ctl();
+    assert_eq!(
+        c.on_host_message(t(0), HostToMaster::SetDrive(seed_002_drive())),
+        None
+    );
+    c.on_slave_frame(t(1), Ok(slave_frame(1, 0, 0)));
+    c.on_host_message(t(1), track(200_000, 100_000));
+    let Drive::Duty(d) = c.control(t(2)) else {
+        panic!("should drive")
+    };
+    assert!(d[0] > 0 && d[0] == d[1] && d[2] == 0, "{d:?}");
+    // A is at x = 0.15 m: a standing sample there is arrival. (Two frames in a row: the
+    // second was armed, and its pose sampled, right then, so nothing is extrapolated.)
+    c.on_slave_frame(t(3), Ok(slave_frame(2, 0, 0)));
+    c.on_slave_frame(t(3), Ok(slave_frame(3, 0, 0)));
+    c.on_host_message(t(3), track(150_000, 0));
+    assert_eq!(c.control(t(3)), Drive::Stop);
+    assert_ne!(c.status() & status::ARRIVED, 0);
+    // The same standing sample again keeps the hold.
+    c.on_host_message(t(5), track(150_000, 0));
+    c.on_slave_frame(t(5), Ok(slave_frame(4, 0, 0)));
+    assert_eq!(c.control(t(6)), Drive::Stop);
+    // Faster than any wheel allows: refused.
+    assert_eq!(
+        c.on_host_message(t(7), track(150_000, 900_000)),
+        Some(MasterToHost::Rejected(RejectReason::InvalidTarget))
+    );
 }

@@ -11,8 +11,12 @@ use host_bench::formats::atomic::write_atomically;
 use plotters::prelude::*;
 
 pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
-    let cfg = firmware_master::MasterConfig::DEFAULT;
-    let e = envelope::run(cfg.wheel_distance, cfg.v_max)?;
+    // Seed 003's wheels as the master drives them at power-on.
+    let geometry = firmware_master::MasterConfig::DEFAULT.drive;
+    let protocol::serial::DriveKind::Omni3 { d_um } = geometry.kind else {
+        anyhow::bail!("the master's power-on drive is not seed 003's three omni wheels");
+    };
+    let e = envelope::run(d_um as f64 * 1e-6, geometry.v_max_um_s as f64 * 1e-6)?;
     if let Some(path) = &out {
         write_svg(&e, path)?;
         eprintln!("wrote {}", path.display());

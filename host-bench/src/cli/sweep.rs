@@ -16,7 +16,7 @@ pub fn run_sweep(
         let s = emulator::run(scenario, &o)?.summary;
         if !json {
             println!(
-                "seed {:>4}: final error {:7.3} mm, max {:7.3} mm, heading {:+7.3} deg, encoder phases {:.2}/{:.2}, {:5.1} mm from goal, rejected frames {}",
+                "seed {:>4}: final error {:7.3} mm, max {:7.3} mm, heading {:+7.3} deg, encoder phases {:.2}/{:.2}, {:5.1} mm from goal, rejected frames {}{}",
                 s.seed,
                 s.final_error_m * 1e3,
                 s.max_error_m * 1e3,
@@ -24,7 +24,12 @@ pub fn run_sweep(
                 s.encoder_phase[0],
                 s.encoder_phase[1],
                 s.distance_to_goal_m * 1e3,
-                s.spi_frames_rejected + s.serial_frames_rejected
+                s.spi_frames_rejected + s.serial_frames_rejected,
+                match (s.tracking_rms_m, s.tracking_max_m) {
+                    (Some(r), Some(m)) =>
+                        format!(", tracking RMS {:.2} / max {:.2} mm", r * 1e3, m * 1e3),
+                    _ => String::new(),
+                }
             );
         }
         summaries.push(s);
@@ -37,6 +42,10 @@ pub fn run_sweep(
     let fe = stat(|s| s.final_error_m);
     let me = stat(|s| s.max_error_m);
     let he = stat(|s| s.final_heading_error_rad.abs());
+    // Seed 002's tracking error, for a tracked path (NaN otherwise; then left out).
+    let tracking = summaries[0].tracking_rms_m.is_some();
+    let tr = stat(|s| s.tracking_rms_m.unwrap_or(f64::NAN));
+    let tm = stat(|s| s.tracking_max_m.unwrap_or(f64::NAN));
     if json {
         let spread = |(min, median, max): (f64, f64, f64)| serde_json::json!({"min": min, "median": median, "max": max});
         println!(
@@ -47,6 +56,8 @@ pub fn run_sweep(
                 "final_error_m": spread(fe),
                 "max_error_m": spread(me),
                 "abs_final_heading_error_rad": spread(he),
+                "tracking_rms_m": tracking.then(|| spread(tr)),
+                "tracking_max_m": tracking.then(|| spread(tm)),
             })
         );
     } else {
@@ -60,6 +71,15 @@ pub fn run_sweep(
             me.2 * 1e3,
             he.2.to_degrees()
         );
+        if tracking {
+            println!(
+                "tracked point vs the path (from 1 s on): RMS median {:.2} / max {:.2} mm; max error median {:.2} / max {:.2} mm",
+                tr.1 * 1e3,
+                tr.2 * 1e3,
+                tm.1 * 1e3,
+                tm.2 * 1e3
+            );
+        }
     }
     Ok(())
 }

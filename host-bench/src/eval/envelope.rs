@@ -145,7 +145,7 @@ pub fn run(wheel_distance_m: f64, v_max_m_s: f64) -> Result<Envelope> {
 /// the speed of its reference point along its path (m/s) and its spin (rad/s).
 fn drive_flat_out(omni: &Omni3, wheels: [f64; 3]) -> Result<(f64, f64)> {
     let cfg = PlantConfig {
-        drive: *omni,
+        drive: robot_math::drive::DriveKinematics::Omni3(*omni),
         // Full duty is v_max: "flat out" is the duty limit, as on the board.
         speed_at_full_duty: omni.v_max,
         motor_tau: MOTOR_TAU_S,

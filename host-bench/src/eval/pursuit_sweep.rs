@@ -18,6 +18,7 @@
 use anyhow::Result;
 use serde::Serialize;
 
+use crate::sim::emulator::reference::ReferencePath;
 use crate::sim::emulator::{self, LogRow, Options, Scenario};
 
 /// The periods swept, seconds (0: our continuous law).
@@ -46,13 +47,7 @@ pub struct Row {
 /// target (`duration_s` of it).
 pub fn run(periods_s: &[f64], duration_s: f64) -> Result<Vec<Row>> {
     let scenario = Scenario::seed004_pursuit();
-    let stops_at = {
-        let (dx, dy) = (
-            scenario.target_to.0 - scenario.target_from.0,
-            scenario.target_to.1 - scenario.target_from.1,
-        );
-        dx.hypot(dy) / scenario.target_speed
-    };
+    let stops_at = ReferencePath::new(&scenario.motion)?.duration();
     let mut rows = Vec::new();
     for &tau in periods_s {
         let mut opts = Options::new(&scenario);

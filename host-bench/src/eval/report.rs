@@ -18,8 +18,17 @@ use crate::sim::emulator::{LogRow, Run, Summary};
 /// The short summary `emulate` prints.
 pub fn summary_text(s: &Summary) -> String {
     let ok = |b: bool| if b { "ok" } else { "MISMATCH" };
-    format!(
-        "scenario        {scenario} (seed {seed}), slave odometry `{algorithm}`\n\
+    let tracking = match (s.tracking_rms_m, s.tracking_max_m) {
+        (Some(rms), Some(max)) => format!(
+            "tracking        tracked point vs the path: RMS {:.2} mm, max {:.2} mm (from 1 s on, {} samples)\n",
+            rms * 1e3,
+            max * 1e3,
+            s.tracking_samples
+        ),
+        _ => String::new(),
+    };
+    let text = format!(
+        "scenario        {scenario} (seed {seed}), robot {robot}, slave odometry `{algorithm}`\n\
          simulated       {sim:.3} s in {wall:.3} s wall ({speed:.0}x real time)\n\
          path length     {path:.3} m\n\
          slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
@@ -29,6 +38,7 @@ pub fn summary_text(s: &Summary) -> String {
          SPI frames      {spi} exchanged, {spir} rejected\n\
          serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",
         scenario = s.scenario,
+        robot = s.robot,
         algorithm = s.algorithm,
         seed = s.seed,
         sim = s.sim_seconds,
@@ -58,7 +68,8 @@ pub fn summary_text(s: &Summary) -> String {
         serr = s.serial_frames_rejected,
         pv = s.protocol_version,
         fp = ok(s.schema_fingerprint_match),
-    )
+    );
+    text + &tracking
 }
 
 /// Write `run.csv`, `path.svg` and `summary.json` into `dir` (created if missing).

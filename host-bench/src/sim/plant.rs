@@ -9,8 +9,8 @@
 //! Ground truth is the body pose at every instant.
 
 use robot_math::carriage::CarriageGeometry;
+use robot_math::drive::DriveKinematics;
 use robot_math::odometry::{AbsLayout, Layout};
-use robot_math::omni3::Omni3;
 use robot_math::se2::wrap_angle;
 use robot_math::sensors::binary_to_gray;
 use robot_math::wheel::Wheel;
@@ -92,7 +92,7 @@ impl MeasuringSensors {
 #[derive(Clone, Copy, Debug)]
 pub struct PlantConfig {
     /// Drive wheels (their `v_max` is unused by the plant: physics does not saturate).
-    pub drive: Omni3,
+    pub drive: DriveKinematics,
     /// Wheel speed at full duty, m/s.
     pub speed_at_full_duty: f64,
     /// Motor time constant, seconds (first-order response to a duty step).
@@ -358,20 +358,21 @@ mod tests {
     use robot_math::carriage::CarriageOdometry;
     use std::f64::consts::PI;
 
+    fn omni() -> robot_math::omni3::Omni3 {
+        robot_math::omni3::Omni3::new(0.22, 1.0).unwrap()
+    }
+
     fn cfg() -> PlantConfig {
         PlantConfig {
-            drive: Omni3::new(0.22, 1.0).unwrap(),
+            drive: DriveKinematics::Omni3(omni()),
             speed_at_full_duty: 1.0,
             motor_tau: 0.05,
             sensors: MeasuringSensors::SEED_004,
         }
     }
 
-    fn duty_for(p: &Plant, t: Twist) -> [i16; 3] {
-        p.cfg
-            .drive
-            .wheel_speeds(t)
-            .map(|w| (w * 1000.0).round() as i16)
+    fn duty_for(_: &Plant, t: Twist) -> [i16; 3] {
+        omni().wheel_speeds(t).map(|w| (w * 1000.0).round() as i16)
     }
 
     #[test]

@@ -23,10 +23,12 @@ use std::time::{Duration as WallDuration, Instant as WallInstant};
 
 use anyhow::{Context, Result};
 use embassy_time::{Duration, Instant};
+use firmware_master::drive_setup::DriveSetup;
 use firmware_master::{ports::MotorDrivers, MasterConfig, MasterShared};
 use firmware_slave::{SlaveConfig, SlaveShared};
 use protocol::serial::{self, FrameDecoder, MasterToHost};
 use rand::{Rng, SeedableRng};
+use robot_math::drive::DriveKinematics;
 use robot_math::odometry::Layout;
 use robot_math::omni3::Omni3;
 use robot_math::pursuit::field_to_body;
@@ -180,6 +182,28 @@ impl Course {
     }
 }
 
+/// The virtual board's robot: the master's power-on drive, which must be omni wheels (the
+/// course steers the body's twist freely).
+struct OmniDrive {
+    kinematics: Omni3,
+    speed_at_full_duty: f64,
+}
+
+fn omni_drive(master: &MasterConfig) -> Result<OmniDrive> {
+    match DriveSetup::from_geometry(&master.drive) {
+        Some(DriveSetup {
+            kinematics: DriveKinematics::Omni3(kinematics),
+            speed_at_full_duty,
+            ..
+        }) => Ok(OmniDrive {
+            kinematics,
+            speed_at_full_duty,
+        }),
+        Some(_) => anyhow::bail!("the virtual board drives omni wheels only"),
+        None => anyhow::bail!("the master's drive geometry is impossible"),
+    }
+}
+
 /// Open the pseudo-terminal pair; the returned name is what `play --port` opens.
 pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
     let (mut master, slave) = TTYPort::pair().context("cannot open a pseudo-terminal pair")?;
@@ -192,13 +216,12 @@ pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
 /// Serve on `pty` until `stop` says so (forever for the CLI).
 pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
-    let drive = Omni3::new(opts.master.wheel_distance, opts.master.v_max)
-        .context("drive geometry: wheel distance and v_max must be positive")?;
+    let drive = omni_drive(&opts.master)?;
     let sensors = MeasuringSensors::from_layout(&opts.slave.layout)
         .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
     let plant_cfg = PlantConfig {
-        drive,
-        speed_at_full_duty: opts.master.speed_at_full_duty,
+        drive: DriveKinematics::Omni3(drive.kinematics),
+        speed_at_full_duty: drive.speed_at_full_duty,
         motor_tau: 0.05,
         sensors,
     };
@@ -214,8 +237,8 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         next: 0,
         speed: opts.course_speed,
         steering: Steering::for_sensors(&sensors),
-        drive,
-        speed_at_full_duty: opts.master.speed_at_full_duty,
+        drive: drive.kinematics,
+        speed_at_full_duty: drive.speed_at_full_duty,
     };
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
@@ -361,11 +384,10 @@ mod tests {
     fn an_axle_robot_is_driven_round_the_square_without_sliding_sideways() {
         let layout = axle_layout();
         let sensors = MeasuringSensors::from_layout(&layout).unwrap();
-        let master = MasterConfig::DEFAULT;
-        let drive = Omni3::new(master.wheel_distance, master.v_max).unwrap();
+        let drive = omni_drive(&MasterConfig::DEFAULT).unwrap();
         let cfg = PlantConfig {
-            drive,
-            speed_at_full_duty: master.speed_at_full_duty,
+            drive: DriveKinematics::Omni3(drive.kinematics),
+            speed_at_full_duty: drive.speed_at_full_duty,
             motor_tau: 0.05,
             sensors,
         };
@@ -375,8 +397,8 @@ mod tests {
             next: 0,
             speed: 0.3,
             steering: Steering::for_sensors(&sensors),
-            drive,
-            speed_at_full_duty: master.speed_at_full_duty,
+            drive: drive.kinematics,
+            speed_at_full_duty: drive.speed_at_full_duty,
         };
         let mut odo = Odometry::new(
             &layout,

@@ -6,12 +6,12 @@ use std::f64::consts::PI;
 use robot_math::wheel::{invert3, Mat3, Wheel};
 use toml::Spanned;
 
-use super::parse::{Parser, Res};
+use super::super::toml_file::{Res, TomlFile};
 use super::raw::{RawCarriage, RawCode, RawRobot};
 use super::{AbsMeasures, AbsoluteEncoder, Carriage, DriveWheel, Encoder, Robot};
 
-impl Parser<'_> {
-    pub(super) fn check(&self, raw: RawRobot) -> Res<Robot> {
+impl TomlFile<'_> {
+    pub(super) fn check_robot(&self, raw: RawRobot) -> Res<Robot> {
         let name = self.name(&raw.name, "name")?;
 
         let mut encoders = Vec::with_capacity(raw.encoders.len());
@@ -153,6 +153,21 @@ impl Parser<'_> {
                 }
             };
 
+        let tracked_point_x_m = match &raw.tracked_point {
+            Some(t) => {
+                let x = self.finite(&t.get_ref().x_m, "tracked_point.x_m")?;
+                if x == 0.0 {
+                    return Err(self.at(
+                        t.get_ref().x_m.span(),
+                        "tracked_point.x_m",
+                        "must not be 0: a point on the axle cannot move sideways (seed 002 needs l != 0)",
+                    ));
+                }
+                Some(x)
+            }
+            None => None,
+        };
+
         Ok(Robot {
             name,
             description: raw.description.trim().to_string(),
@@ -160,6 +175,7 @@ impl Parser<'_> {
             absolute_encoders,
             carriage,
             drive_wheels,
+            tracked_point_x_m,
         })
     }
 

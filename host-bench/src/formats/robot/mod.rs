@@ -11,18 +11,18 @@
 //! `check` turns it into a [`Robot`] (values and geometry).
 
 use std::f64::consts::PI;
-use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use robot_math::carriage::CarriageGeometry;
 use robot_math::sensors::{binary_to_gray, gray_to_binary};
 use robot_math::wheel::Wheel;
 use serde::Deserialize;
 
-use parse::Parser;
+pub use super::toml_file::FileError;
+use super::toml_file::{read_text, Res, Shape, TomlFile};
+use raw::RawRobot;
 
 mod check;
-mod parse;
 mod raw;
 #[cfg(test)]
 mod tests;
@@ -42,6 +42,9 @@ pub struct Robot {
     pub absolute_encoders: Vec<AbsoluteEncoder>,
     pub carriage: Option<Carriage>,
     pub drive_wheels: Vec<DriveWheel>,
+    /// Seed 002's point A: the point a differential drive tracks, this far ahead of the
+    /// reference point on body +x (never 0). `None`: the reference point itself.
+    pub tracked_point_x_m: Option<f64>,
 }
 
 /// An incremental (quadrature) encoder on a measuring wheel.
@@ -102,37 +105,8 @@ pub struct DriveWheel {
     pub v_max_m_s: f64,
 }
 
-/// Why a robot file was refused. Displays as `path:LINE:COL: key `k`: message`, with the parts
-/// that are unknown left out (an unreadable file has neither line nor key).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct RobotError {
-    pub path: PathBuf,
-    /// 1-based line of the offending key or value.
-    pub line: Option<usize>,
-    /// 1-based column (in characters) on that line.
-    pub column: Option<usize>,
-    /// Dotted key path with array indices, e.g. `encoders[1].metres_per_count`.
-    pub key: Option<String>,
-    pub message: String,
-}
-
-impl fmt::Display for RobotError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.path.display())?;
-        match (self.line, self.column) {
-            (Some(l), Some(c)) => write!(f, ":{l}:{c}")?,
-            (Some(l), None) => write!(f, ":{l}")?,
-            _ => {}
-        }
-        write!(f, ": ")?;
-        if let Some(k) = &self.key {
-            write!(f, "key `{k}`: ")?;
-        }
-        write!(f, "{}", self.message)
-    }
-}
-
-impl std::error::Error for RobotError {}
+/// Why a robot file was refused (see [`FileError`]).
+pub type RobotError = FileError;
 
 impl AbsoluteEncoder {
     /// Positions per turn (2^bits).
@@ -178,23 +152,20 @@ impl AbsoluteEncoder {
 impl Robot {
     /// Reads and checks a robot file.
     pub fn load(path: &Path) -> Result<Robot, RobotError> {
-        let text = std::fs::read_to_string(path).map_err(|e| RobotError {
-            path: path.to_path_buf(),
-            line: None,
-            column: None,
-            key: None,
-            message: format!("cannot read the robot file: {e}"),
-        })?;
+        let text = read_text(path, "robot file")?;
         Robot::parse(&text, path)
     }
 
     /// Parses and checks a robot description; `name_for_errors` is what errors call the file.
     pub fn parse(text: &str, name_for_errors: &Path) -> Result<Robot, RobotError> {
-        Parser {
+        let file = TomlFile {
             path: name_for_errors,
             text,
-        }
-        .parse()
+            format: FORMAT,
+            kind: "robot file",
+        };
+        let raw: RawRobot = file.read(robot_shape)?;
+        file.check_robot(raw)
     }
 
     /// The measuring wheels of the encoders, in encoder order.
@@ -224,4 +195,26 @@ impl Robot {
             abs_bits: swivel.bits,
         })
     }
+}
+
+/// The robot file's tables' shapes, which serde would report in terms of its own internals.
+fn robot_shape(file: &TomlFile, s: Shape) -> Res<()> {
+    if s.key == "carriage" && s.array {
+        return Err(file.at(
+            s.span,
+            s.key,
+            "a robot has at most one carriage: write [carriage], not [[carriage]]",
+        ));
+    }
+    if ["encoders", "absolute_encoders", "drive_wheels"].contains(&s.key) && !s.array {
+        return Err(file.at(
+            s.span,
+            s.key,
+            format!(
+                "must be an array of tables: write [[{}]] before each one",
+                s.key
+            ),
+        ));
+    }
+    Ok(())
 }

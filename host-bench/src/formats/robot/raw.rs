@@ -21,6 +21,13 @@ pub(super) struct RawRobot {
     pub(super) carriage: Option<Spanned<RawCarriage>>,
     #[serde(default)]
     pub(super) drive_wheels: Vec<Spanned<RawDriveWheel>>,
+    pub(super) tracked_point: Option<Spanned<RawTrackedPoint>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawTrackedPoint {
+    pub(super) x_m: Spanned<f64>,
 }
 
 #[derive(Deserialize)]

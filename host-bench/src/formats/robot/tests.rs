@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
-use super::parse::{key_on_line, line_col, table_header};
 use super::*;
+use crate::formats::toml_file::{key_on_line, line_col, table_header};
 
 fn parse(text: &str) -> Result<Robot, RobotError> {
     Robot::parse(text, Path::new("t.toml"))

@@ -8,10 +8,13 @@ use std::rc::Rc;
 use embassy_futures::join::join;
 use embassy_time::{Duration, Instant, Timer};
 use embedded_io_async::{Read, Write};
-use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost, MovingTarget, Telemetry};
+use protocol::serial::{
+    self, FrameDecoder, HostToMaster, MasterToHost, MovingTarget, Telemetry, TrackPoint,
+};
 use protocol::{BinaryAngle, Point, Pose, PROTOCOL_VERSION};
 
-use super::Scenario;
+use super::reference::{ReferencePath, Sample};
+use super::{Motion, Scenario};
 
 /// What the host saw during the session.
 #[derive(Debug, Default)]
@@ -21,7 +24,8 @@ pub struct HostLog {
     pub frames_sent: u64,
     pub fingerprint_match: Option<bool>,
     pub last_telemetry: Option<Telemetry>,
-    /// Virtual time (s) the follow-target command was sent.
+    /// Virtual time (s) the motion started: the follow-target command was sent, or the
+    /// tracked path's first sample.
     pub follow_sent_at: Option<f64>,
     /// Why the session failed, if it did.
     pub problem: Option<String>,
@@ -30,10 +34,11 @@ pub struct HostLog {
 /// How often the host says it is still there (well inside the master's host timeout).
 const HEARTBEAT: Duration = Duration::from_millis(100);
 
-/// Run a host session for `scenario` over a serial link.
+/// Run a host session for `scenario` over a serial link whose bytes take `byte_time` each.
 pub async fn session(
     rx: impl Read,
     mut tx: impl Write,
+    byte_time: Duration,
     scenario: Scenario,
     algorithm: protocol::spi::OdometryAlgorithm,
     log: Rc<RefCell<HostLog>>,
@@ -60,6 +65,8 @@ pub async fn session(
         if log.borrow().problem.is_some() {
             return;
         }
+        // One image serves every robot: this run's drive first.
+        send(&mut tx, &log, &HostToMaster::SetDrive(scenario.drive)).await;
         let (x, y, th) = scenario.start;
         send(
             &mut tx,
@@ -70,21 +77,78 @@ pub async fn session(
         send(&mut tx, &log, &HostToMaster::SetOdometry(algorithm)).await;
         // Give the master a few polls to get both commands to the slave and acknowledged.
         Timer::after_millis(20).await;
-        let follow = HostToMaster::FollowTarget(MovingTarget {
-            from: Point::from_metres(scenario.target_from.0, scenario.target_from.1),
-            to: Point::from_metres(scenario.target_to.0, scenario.target_to.1),
-            target_speed_um_s: (scenario.target_speed * 1e6).round() as u32,
-            robot_speed_um_s: (scenario.robot_speed * 1e6).round() as u32,
-            heading: BinaryAngle::from_radians(scenario.heading),
-        });
-        send(&mut tx, &log, &follow).await;
-        log.borrow_mut().follow_sent_at = Some(Instant::now().as_micros() as f64 * 1e-6);
-        loop {
-            Timer::after(HEARTBEAT).await;
-            send(&mut tx, &log, &HostToMaster::Heartbeat).await;
+        let reference = match ReferencePath::new(&scenario.motion) {
+            Ok(r) => r,
+            Err(e) => {
+                log.borrow_mut().problem = Some(e.to_string());
+                return;
+            }
+        };
+        match scenario.motion {
+            Motion::Pursue {
+                target_from,
+                target_to,
+                target_speed,
+                robot_speed,
+                heading,
+            } => {
+                let follow = HostToMaster::FollowTarget(MovingTarget {
+                    from: Point::from_metres(target_from.0, target_from.1),
+                    to: Point::from_metres(target_to.0, target_to.1),
+                    target_speed_um_s: (target_speed * 1e6).round() as u32,
+                    robot_speed_um_s: (robot_speed * 1e6).round() as u32,
+                    heading: BinaryAngle::from_radians(heading),
+                });
+                send(&mut tx, &log, &follow).await;
+                log.borrow_mut().follow_sent_at = Some(secs(Instant::now()));
+                loop {
+                    Timer::after(HEARTBEAT).await;
+                    send(&mut tx, &log, &HostToMaster::Heartbeat).await;
+                }
+            }
+            Motion::Track {
+                sample_period_s, ..
+            } => {
+                let t0 = Instant::now();
+                log.borrow_mut().follow_sent_at = Some(secs(t0));
+                let period = Duration::from_micros((sample_period_s * 1e6).round() as u64);
+                let mut next = t0;
+                loop {
+                    // The master takes a sample as "now" when its last byte lands: send the
+                    // reference for that instant.
+                    let on_the_wire = byte_time * TRACK_FRAME_BYTES;
+                    let t = secs(Instant::now() + on_the_wire) - secs(t0);
+                    send(
+                        &mut tx,
+                        &log,
+                        &HostToMaster::Track(track_point(reference.at(t))),
+                    )
+                    .await;
+                    next += period;
+                    Timer::at(next).await;
+                }
+            }
         }
     };
     join(reader, writer).await;
+}
+
+/// A track sample's frame length on the wire, bytes (typical; a byte or two either way moves
+/// the sample by under 0.2 ms at 115200 baud).
+const TRACK_FRAME_BYTES: u32 = 30;
+
+fn secs(t: Instant) -> f64 {
+    t.as_micros() as f64 * 1e-6
+}
+
+fn track_point(s: Sample) -> TrackPoint {
+    let um = |v: f64| (v * 1e6).round() as i32;
+    TrackPoint {
+        position: Point::from_metres(s.position.0, s.position.1),
+        velocity_um_s: [um(s.velocity.0), um(s.velocity.1)],
+        heading: BinaryAngle::from_radians(s.heading),
+        omega_urad_s: um(s.omega),
+    }
 }
 
 async fn send(tx: &mut impl Write, log: &RefCell<HostLog>, msg: &HostToMaster) {

@@ -13,6 +13,7 @@
 
 pub mod host;
 pub mod hw;
+pub mod reference;
 
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -20,10 +21,12 @@ use std::time::Instant as WallInstant;
 
 use anyhow::{bail, Context as _, Result};
 use embassy_time::{Duration, Instant};
+use firmware_master::drive_setup::DriveSetup;
 use firmware_master::{MasterConfig, MasterShared};
 use firmware_slave::{SlaveConfig, SlaveShared};
+use protocol::serial::DriveGeometry;
 use rand::{Rng, SeedableRng};
-use robot_math::omni3::Omni3;
+use robot_math::odometry::Layout;
 use robot_math::se2::wrap_angle;
 use robot_math::Pose2;
 use serde::Serialize;
@@ -32,23 +35,67 @@ use virtual_time::Simulation;
 use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
 use hw::*;
 
-/// A run to emulate: where the robot starts and what the host asks of it.
+/// A run to emulate: the robot, where it starts and what the host asks of it. Built in
+/// ([`Scenario::seed004_pursuit`]) or read from a scenario file (`formats::scenario`).
 #[derive(Clone, Debug, Serialize)]
 pub struct Scenario {
     pub name: String,
     pub description: String,
+    /// The robot's name.
+    pub robot: String,
+    /// Its drive, sent to the master (`SetDrive`) at the start of the session.
+    #[serde(skip)]
+    pub drive: DriveGeometry,
+    /// Its measuring sensors, which the emulated slave is built with.
+    #[serde(skip)]
+    pub layout: Layout,
     /// Initial body pose (x m, y m, θ rad); the host sends it as set-pose.
     pub start: (f64, f64, f64),
     /// Initial carriage swivel, radians (carriage heading minus body heading).
     pub start_swivel: f64,
-    pub target_from: (f64, f64),
-    pub target_to: (f64, f64),
-    pub target_speed: f64,
-    pub robot_speed: f64,
-    /// Heading the robot holds, radians.
-    pub heading: f64,
+    pub motion: Motion,
     /// How long to run by default, seconds.
     pub duration: f64,
+    /// Seed 004's Euler pursuit period (None: the master's own, continuous pursuit).
+    pub pursuit_period_s: Option<f64>,
+    /// Where each measuring-wheel encoder stands within its count at power-on (None: drawn
+    /// from the run's seed).
+    pub encoder_phase: Option<[f64; 2]>,
+    pub faults: Faults,
+}
+
+/// What the host asks of the robot.
+#[derive(Clone, Debug, Serialize)]
+pub enum Motion {
+    /// Seed 004: a target moving from `target_from` to `target_to` at `target_speed`, pursued
+    /// at `robot_speed` holding `heading` (radians).
+    Pursue {
+        target_from: (f64, f64),
+        target_to: (f64, f64),
+        target_speed: f64,
+        robot_speed: f64,
+        heading: f64,
+    },
+    /// Seed 002: the tracked point follows a catalogue trajectory, streamed to the master one
+    /// sample (position, velocity, heading) every `sample_period_s`.
+    Track {
+        trajectory: String,
+        sample_period_s: f64,
+    },
+}
+
+impl Motion {
+    /// Where the tracked point should end up.
+    pub fn goal(&self) -> Option<(f64, f64)> {
+        match self {
+            Motion::Pursue { target_to, .. } => Some(*target_to),
+            Motion::Track { trajectory, .. } => {
+                let t = crate::sim::trajectory::build(trajectory)?;
+                let p = t.pose(t.duration());
+                Some((p.x, p.y))
+            }
+        }
+    }
 }
 
 impl Scenario {
@@ -58,16 +105,24 @@ impl Scenario {
         Scenario {
             name: "seed004-pursuit".into(),
             description: "seed 004: target (0,3) m -> (2.5,3) m at 0.35 m/s, robot at 0.6 m/s from the origin".into(),
+            robot: "seed004 (power-on)".into(),
+            drive: firmware_master::drive_setup::SEED_004_DRIVE,
+            layout: Layout::SEED_004,
             start: (0.0, 0.0, 0.0),
             // The carriage trails the first direction of travel (+y), with the swivel at the
             // centre of an absolute-encoder code (see README, "Robot").
             start_swivel: std::f64::consts::FRAC_PI_2,
-            target_from: (0.0, 3.0),
-            target_to: (2.5, 3.0),
-            target_speed: 0.35,
-            robot_speed: 0.60,
-            heading: 0.0,
+            motion: Motion::Pursue {
+                target_from: (0.0, 3.0),
+                target_to: (2.5, 3.0),
+                target_speed: 0.35,
+                robot_speed: 0.60,
+                heading: 0.0,
+            },
             duration: 12.0,
+            pursuit_period_s: None,
+            encoder_phase: None,
+            faults: Faults::default(),
         }
     }
 
@@ -114,7 +169,17 @@ pub struct Faults {
 }
 
 impl Options {
+    /// The scenario's own settings (duration, pursuit period, encoder phases, faults, the
+    /// slave's sensors) on the boards' defaults.
     pub fn new(scenario: &Scenario) -> Self {
+        let mut master = MasterConfig::DEFAULT;
+        if let Some(p) = scenario.pursuit_period_s {
+            master.pursuit.period_s = p;
+        }
+        let slave = SlaveConfig {
+            layout: scenario.layout.clone(),
+            ..SlaveConfig::DEFAULT
+        };
         Options {
             duration: scenario.duration,
             seed: 1,
@@ -122,12 +187,12 @@ impl Options {
             log_period: 0.01,
             baud: 115_200,
             spi_clock_hz: 2_250_000,
-            master: MasterConfig::DEFAULT,
-            slave: SlaveConfig::DEFAULT,
+            master,
+            slave,
             motor_tau: 0.05,
-            faults: Faults::default(),
+            faults: scenario.faults.clone(),
             algorithm: protocol::spi::OdometryAlgorithm::Exact,
-            encoder_phase: None,
+            encoder_phase: scenario.encoder_phase,
         }
     }
 }
@@ -160,6 +225,7 @@ pub struct LogRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
     pub scenario: String,
+    pub robot: String,
     /// The slave's odometry algorithm (as the slave reports it).
     pub algorithm: String,
     pub seed: u64,
@@ -174,18 +240,25 @@ pub struct Summary {
     pub path_length_m: f64,
     /// Slave odometry vs ground truth at the end of the run, metres.
     pub final_error_m: f64,
-    /// Largest slave odometry error over the run, metres (checked at every slave update).
+    /// Largest slave odometry error over the run, metres (checked at every slave update from
+    /// the start of the motion, when the host's set-pose has been applied).
     pub max_error_m: f64,
     pub final_heading_error_rad: f64,
     /// Where the slave's odometry says the robot ended, metres.
     pub final_estimate_m: (f64, f64),
-    /// Where the robot really ended, and how far that is from the target's end point.
+    /// Where the robot really ended, and how far its tracked point is from the goal.
     pub final_position_m: (f64, f64),
     pub distance_to_goal_m: f64,
+    /// Seed 002's tracking error: the true tracked point against the reference path at the
+    /// same instant, RMS and max over samples every log period from a second after the path
+    /// started to the end of the run (`None` for a pursuit, which has no path to track).
+    pub tracking_rms_m: Option<f64>,
+    pub tracking_max_m: Option<f64>,
+    pub tracking_samples: u64,
     pub arrived: bool,
     /// Times the motors went from standing to driven over the whole run, and after the master
-    /// first reported arrival (`None` if it never did): a controller that holds still at the
-    /// goal switches them on no more.
+    /// first reported arrival once the target or path had stopped for good (`None` if it
+    /// never did): a controller that holds still at the goal switches them on no more.
     pub motor_switch_ons: u64,
     pub motor_switch_ons_after_arrival: Option<u64>,
     /// Seconds the motors were driven (some duty non-zero) after the master first reported
@@ -221,10 +294,11 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     let sensors = MeasuringSensors::from_layout(&opts.slave.layout)
         .map_err(|e| anyhow::anyhow!("the slave's robot cannot be emulated: {e}"))?;
+    let drive = DriveSetup::from_geometry(&scenario.drive)
+        .context("the scenario's drive geometry is impossible")?;
     let plant_cfg = PlantConfig {
-        drive: Omni3::new(opts.master.wheel_distance, opts.master.v_max)
-            .context("drive geometry: wheel distance and v_max must be positive")?,
-        speed_at_full_duty: opts.master.speed_at_full_duty,
+        drive: drive.kinematics,
+        speed_at_full_duty: drive.speed_at_full_duty,
         motor_tau: opts.motor_tau,
         sensors,
     };
@@ -290,6 +364,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
                 line: to_master.clone(),
                 byte_time,
             },
+            byte_time,
             scenario.clone(),
             opts.algorithm,
             host_log.clone(),
@@ -305,12 +380,14 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let (mut max_error, mut slave_updates) = (0.0f64, 0u64);
     // The motors' switch-ons and driven time when the master first said it arrived.
     let mut at_arrival: Option<(u64, f64)> = None;
-    let target = robot_math::pursuit::SegmentTarget {
-        from: scenario.target_from,
-        to: scenario.target_to,
-        speed: scenario.target_speed,
-        t0: 0.0,
-    };
+    let reference = reference::ReferencePath::new(&scenario.motion)?;
+    let tracking = matches!(scenario.motion, Motion::Track { .. });
+    let tracked = DriveSetup::from_geometry(&scenario.drive)
+        .map(|d| d.kinematics.tracked_point())
+        .unwrap_or_default();
+    // Tracking error of the true tracked point against the reference, sampled with the log,
+    // from a second after the path started: (sum of squares, count, max).
+    let mut tracking_error = (0.0f64, 0u64, 0.0f64);
 
     sim.run_until_idle();
     loop {
@@ -327,15 +404,24 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             .advance((next - now).as_micros() as f64 * 1e-6, opts.plant_step);
         sim.run_until(next);
 
-        // Score the slave at every update, at the very instant it sampled its sensors.
+        // Score the slave at every update, at the very instant it sampled its sensors, once
+        // the motion has started (the host's set-pose has been applied by then).
         let frame = slave_shared.frame();
         if last_seq != Some(frame.seq) {
             last_seq = Some(frame.seq);
             slave_updates += 1;
-            let err = slave_shared.pose().distance_to(plant.borrow().body());
-            max_error = max_error.max(err);
+            if host_log.borrow().follow_sent_at.is_some() {
+                let err = slave_shared.pose().distance_to(plant.borrow().body());
+                max_error = max_error.max(err);
+            }
         }
+        // Arrival at the end: a path may stop (and the master hold) on its way.
+        let path_over = host_log
+            .borrow()
+            .follow_sent_at
+            .is_some_and(|t0| next.as_micros() as f64 * 1e-6 - t0 >= reference.duration());
         if at_arrival.is_none()
+            && path_over
             && master_shared.with(|c| c.status()).unwrap_or(0) & protocol::serial::status::ARRIVED
                 != 0
         {
@@ -346,17 +432,23 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             next_log = next + log_every;
             let t_s = next.as_micros() as f64 / 1e6;
             let goal_t0 = host_log.borrow().follow_sent_at;
+            let wanted = goal_t0.map(|t0| reference.at(t_s - t0).position);
+            if let (true, Some(t0), Some(r)) = (tracking, goal_t0, wanted) {
+                if t_s - t0 >= TRACKING_SCORED_AFTER_S {
+                    let p = point_of(plant.borrow().body(), tracked);
+                    let e = (p.0 - r.0).hypot(p.1 - r.1);
+                    tracking_error.0 += e * e;
+                    tracking_error.1 += 1;
+                    tracking_error.2 = tracking_error.2.max(e);
+                }
+            }
             log.push(log_row(
                 t_s,
                 &plant.borrow(),
                 &slave_shared,
                 &master_shared,
                 next,
-                goal_t0.map(|t0| {
-                    robot_math::pursuit::SegmentTarget { t0, ..target }
-                        .position(t_s)
-                        .0
-                }),
+                wanted,
             ));
         }
     }
@@ -367,9 +459,11 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let counters = master_shared.with(|c| c.counters()).unwrap_or_default();
     let h = host_log.borrow();
     let slave_rx_rejected = slave_shared.frame().rx_rejected as u64;
-    let end_pos = truth;
-    let distance_to_goal =
-        (end_pos.x - scenario.target_to.0).hypot(end_pos.y - scenario.target_to.1);
+    let end_point = point_of(truth, tracked);
+    let distance_to_goal = scenario
+        .motion
+        .goal()
+        .map_or(f64::NAN, |g| (end_point.0 - g.0).hypot(end_point.1 - g.1));
     let status = master_shared.with(|c| c.status()).unwrap_or(0);
     let slave_frame = slave_shared.frame();
     if slave_frame.status & protocol::spi::slave_status::ALGORITHM_UNSUPPORTED != 0 {
@@ -382,6 +476,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     }
     let summary = Summary {
         scenario: scenario.name.clone(),
+        robot: scenario.robot.clone(),
         algorithm: format!("{:?}", slave_frame.algorithm).to_lowercase(),
         seed: opts.seed,
         encoder_phase,
@@ -394,6 +489,10 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         final_estimate_m: (slave.x, slave.y),
         final_position_m: (truth.x, truth.y),
         distance_to_goal_m: distance_to_goal,
+        tracking_rms_m: (tracking_error.1 > 0)
+            .then(|| (tracking_error.0 / tracking_error.1 as f64).sqrt()),
+        tracking_max_m: (tracking_error.1 > 0).then_some(tracking_error.2),
+        tracking_samples: tracking_error.1,
         arrived: status & protocol::serial::status::ARRIVED != 0,
         motor_switch_ons: plant.motor_switch_ons(),
         motor_switch_ons_after_arrival: at_arrival.map(|(on, _)| plant.motor_switch_ons() - on),
@@ -411,6 +510,19 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         bail!("the emulated master refused the session: {problem}");
     }
     Ok(Run { summary, log })
+}
+
+/// The tracking error is scored from this long after the path starts (the robot may start
+/// off it), seconds.
+pub const TRACKING_SCORED_AFTER_S: f64 = 1.0;
+
+/// Where a point at `offset` in the body frame is in the field.
+fn point_of(body: Pose2, offset: (f64, f64)) -> (f64, f64) {
+    let (s, c) = body.theta.sin_cos();
+    (
+        body.x + c * offset.0 - s * offset.1,
+        body.y + s * offset.0 + c * offset.1,
+    )
 }
 
 fn secs_to_instant(s: f64) -> Instant {

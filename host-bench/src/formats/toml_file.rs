@@ -1,30 +1,80 @@
-//! Reading a robot file: TOML syntax, the format line and the tables' shapes, then keys and
-//! types through serde; and where an error is (line, column, key path).
+//! Reading one of the bench's TOML files (robots, scenarios): TOML syntax, the format line and
+//! the tables' shapes, then keys and types through serde; and where an error is (line,
+//! column, key path). Each format adds its own value checks on top.
 
 use std::collections::HashMap;
+use std::fmt;
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
+use serde::de::DeserializeOwned;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
-use super::raw::RawRobot;
-use super::{Robot, RobotError, FORMAT};
-
-pub(super) struct Parser<'a> {
-    pub(super) path: &'a Path,
-    pub(super) text: &'a str,
+/// A file being read: where it is (for errors), its text, and the format line it must carry.
+pub struct TomlFile<'a> {
+    pub path: &'a Path,
+    pub text: &'a str,
+    /// The value of the `format` key, e.g. `"omnibench robot v1"`.
+    pub format: &'static str,
+    /// What the file is, for messages: "robot file", "scenario".
+    pub kind: &'static str,
 }
 
-pub(super) type Res<T> = Result<T, RobotError>;
+/// Why a file was refused. Displays as `path:LINE:COL: key `k`: message`, with the parts that
+/// are unknown left out (an unreadable file has neither line nor key).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FileError {
+    pub path: PathBuf,
+    /// 1-based line of the offending key or value.
+    pub line: Option<usize>,
+    /// 1-based column (in characters) on that line.
+    pub column: Option<usize>,
+    /// Dotted key path with array indices, e.g. `encoders[1].metres_per_count`.
+    pub key: Option<String>,
+    pub message: String,
+}
 
-impl Parser<'_> {
-    pub(super) fn error(
-        &self,
-        offset: Option<usize>,
-        key: Option<String>,
-        message: String,
-    ) -> RobotError {
+impl fmt::Display for FileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        match (self.line, self.column) {
+            (Some(l), Some(c)) => write!(f, ":{l}:{c}")?,
+            (Some(l), None) => write!(f, ":{l}")?,
+            _ => {}
+        }
+        write!(f, ": ")?;
+        if let Some(k) = &self.key {
+            write!(f, "key `{k}`: ")?;
+        }
+        write!(f, "{}", self.message)
+    }
+}
+
+impl std::error::Error for FileError {}
+
+pub type Res<T> = Result<T, FileError>;
+
+/// Read `path`'s text, or say why not.
+pub fn read_text(path: &Path, kind: &str) -> Res<String> {
+    std::fs::read_to_string(path).map_err(|e| FileError {
+        path: path.to_path_buf(),
+        line: None,
+        column: None,
+        key: None,
+        message: format!("cannot read the {kind}: {e}"),
+    })
+}
+
+/// A table's shape at the top level: `[name]` (false) or `[[name]]` (true).
+pub struct Shape<'k> {
+    pub key: &'k str,
+    pub array: bool,
+    pub span: Range<usize>,
+}
+
+impl TomlFile<'_> {
+    pub fn error(&self, offset: Option<usize>, key: Option<String>, message: String) -> FileError {
         let (line, column) = match offset {
             Some(o) => {
                 let (l, c) = line_col(self.text, o);
@@ -32,7 +82,7 @@ impl Parser<'_> {
             }
             None => (None, None),
         };
-        RobotError {
+        FileError {
             path: self.path.to_path_buf(),
             line,
             column,
@@ -41,16 +91,11 @@ impl Parser<'_> {
         }
     }
 
-    pub(super) fn at(
-        &self,
-        span: Range<usize>,
-        key: &str,
-        message: impl Into<String>,
-    ) -> RobotError {
+    pub fn at(&self, span: Range<usize>, key: &str, message: impl Into<String>) -> FileError {
         self.error(Some(span.start), Some(key.to_string()), message.into())
     }
 
-    pub(super) fn finite(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
+    pub fn finite(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
         let x = *v.get_ref();
         if x.is_finite() {
             Ok(x)
@@ -59,7 +104,7 @@ impl Parser<'_> {
         }
     }
 
-    pub(super) fn positive(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
+    pub fn positive(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
         let x = self.finite(v, key)?;
         if x > 0.0 {
             Ok(x)
@@ -68,7 +113,7 @@ impl Parser<'_> {
         }
     }
 
-    pub(super) fn name(&self, v: &Spanned<String>, key: &str) -> Res<String> {
+    pub fn name(&self, v: &Spanned<String>, key: &str) -> Res<String> {
         let s = v.get_ref().trim();
         if s.is_empty() {
             return Err(self.at(v.span(), key, "must not be empty"));
@@ -76,7 +121,8 @@ impl Parser<'_> {
         Ok(s.to_string())
     }
 
-    pub(super) fn parse(&self) -> Res<Robot> {
+    /// Syntax, the format line, `shape` on every top-level key, then keys and types into `T`.
+    pub fn read<T: DeserializeOwned>(&self, shape: impl Fn(&Self, Shape) -> Res<()>) -> Res<T> {
         // 1. TOML syntax.
         let (tree, errors) = DeTable::parse_recoverable(self.text);
         if let Some(e) = errors.first() {
@@ -91,7 +137,7 @@ impl Parser<'_> {
 
         // 2. The format line, before anything else: a file of another version must be told so,
         //    not have its new keys called unknown.
-        self.check_format_and_shape(&tree)?;
+        self.check_format_and_shape(&tree, &shape)?;
 
         // 3. Keys and types.
         //    serde_path_to_error names the key (`encoders[2].direction_deg`); toml's error has
@@ -100,14 +146,15 @@ impl Parser<'_> {
             let offset = e.span().map_or(0, |s| s.start);
             self.error(Some(offset), None, format!("TOML syntax: {}", e.message()))
         })?;
-        let raw: RawRobot =
-            serde_path_to_error::deserialize(document).map_err(|e| self.type_error(&e))?;
-
-        // 4. Values and geometry.
-        self.check(raw)
+        serde_path_to_error::deserialize(document).map_err(|e| self.type_error(&e))
     }
 
-    fn check_format_and_shape(&self, tree: &Spanned<DeValue<'_>>) -> Res<()> {
+    fn check_format_and_shape(
+        &self,
+        tree: &Spanned<DeValue<'_>>,
+        shape: &impl Fn(&Self, Shape) -> Res<()>,
+    ) -> Res<()> {
+        let format = self.format;
         let found = match tree.get_ref() {
             DeValue::Table(t) => t.iter().find(|(k, _)| k.get_ref() == "format"),
             _ => None,
@@ -116,23 +163,23 @@ impl Parser<'_> {
             return Err(self.error(
                 Some(0),
                 Some("format".into()),
-                format!("missing: a robot file starts with format = \"{FORMAT}\""),
+                format!("missing: a {} starts with format = \"{format}\"", self.kind),
             ));
         };
         match value.get_ref().as_str() {
-            Some(FORMAT) => {}
+            Some(f) if f == format => {}
             Some(other) => {
                 return Err(self.at(
                     value.span(),
                     "format",
-                    format!("unsupported format \"{other}\": this program reads \"{FORMAT}\""),
+                    format!("unsupported format \"{other}\": this program reads \"{format}\""),
                 ))
             }
             None => {
                 return Err(self.at(
                     value.span(),
                     "format",
-                    format!("must be the string \"{FORMAT}\""),
+                    format!("must be the string \"{format}\""),
                 ))
             }
         }
@@ -141,28 +188,20 @@ impl Parser<'_> {
             return Ok(());
         };
         for (k, v) in t.iter() {
-            let key = k.get_ref().as_ref();
-            let array = matches!(v.get_ref(), DeValue::Array(_));
-            if key == "carriage" && array {
-                return Err(self.at(
-                    v.span(),
-                    key,
-                    "a robot has at most one carriage: write [carriage], not [[carriage]]",
-                ));
-            }
-            if ["encoders", "absolute_encoders", "drive_wheels"].contains(&key) && !array {
-                return Err(self.at(
-                    v.span(),
-                    key,
-                    format!("must be an array of tables: write [[{key}]] before each one"),
-                ));
-            }
+            shape(
+                self,
+                Shape {
+                    key: k.get_ref().as_ref(),
+                    array: matches!(v.get_ref(), DeValue::Array(_)),
+                    span: v.span(),
+                },
+            )?;
         }
         Ok(())
     }
 
     /// A serde error (unknown key, wrong type, missing key), at the key path where it happened.
-    fn type_error(&self, e: &serde_path_to_error::Error<toml::de::Error>) -> RobotError {
+    fn type_error(&self, e: &serde_path_to_error::Error<toml::de::Error>) -> FileError {
         let span = e.inner().span().unwrap_or(0..0);
         let mut path = key_path(e.path());
         let mut message = e
@@ -190,7 +229,7 @@ impl Parser<'_> {
 }
 
 /// 1-based line and column (in characters) of a byte offset.
-pub(super) fn line_col(text: &str, offset: usize) -> (usize, usize) {
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let mut off = offset.min(text.len());
     while !text.is_char_boundary(off) {
         off -= 1;
@@ -226,7 +265,7 @@ fn key_path(path: &serde_path_to_error::Path) -> String {
 
 /// For a syntax error (no parsed tree to consult): the key path of the line at `offset`, from
 /// the table headers above it and the `key =` on that line. Covers one-key-per-line files.
-pub(super) fn key_on_line(text: &str, offset: usize) -> Option<String> {
+pub fn key_on_line(text: &str, offset: usize) -> Option<String> {
     let (line, _) = line_col(text, offset);
     let mut prefix = String::new();
     let mut counts: HashMap<String, usize> = HashMap::new();
@@ -263,7 +302,7 @@ pub(super) fn key_on_line(text: &str, offset: usize) -> Option<String> {
 }
 
 /// `[name]` → (name, false), `[[name]]` → (name, true), anything else → None.
-pub(super) fn table_header(line: &str) -> Option<(String, bool)> {
+pub fn table_header(line: &str) -> Option<(String, bool)> {
     let line = match line.find('#') {
         Some(i) => line[..i].trim(),
         None => line,

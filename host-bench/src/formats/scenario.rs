@@ -1,0 +1,346 @@
+//! Scenario files: one emulated run in a small TOML file, format `"omnibench scenario v1"`:
+//! the robot (a robot file), where it starts, what the host asks of it (seed 004's moving
+//! target or a time-parametrised trajectory for seed 002's tracking law), the controller's
+//! gains, how long to run, the encoders' power-on phases and the faults to inject. Every key is
+//! in `docs/scenario-format.md`; the scenarios are in `scenarios/`.
+//!
+//! Errors name the file, line, column and key, as the robot format's do.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, Result};
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::robot::Robot;
+use super::toml_file::{read_text, FileError, Res, Shape, TomlFile};
+use crate::sim::emulator::{Faults, Motion, Scenario};
+use crate::sim::trajectory;
+
+/// The value of the `format` key this module reads.
+pub const FORMAT: &str = "omnibench scenario v1";
+
+/// How often the host sends the tracked path's next sample by default, seconds.
+pub const SAMPLE_PERIOD_S: f64 = 0.02;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScenario {
+    #[allow(dead_code)]
+    format: Spanned<String>,
+    name: Spanned<String>,
+    #[serde(default)]
+    description: String,
+    /// Relative to the scenario file's folder.
+    robot: Option<Spanned<String>>,
+    duration_s: Spanned<f64>,
+    start: RawStart,
+    target: Option<Spanned<RawTarget>>,
+    trajectory: Option<Spanned<RawTrajectory>>,
+    controller: Option<RawController>,
+    noise: Option<RawNoise>,
+    faults: Option<RawFaults>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawStart {
+    x_m: Spanned<f64>,
+    y_m: Spanned<f64>,
+    heading_deg: Spanned<f64>,
+    swivel_deg: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTarget {
+    from_m: Spanned<[f64; 2]>,
+    to_m: Spanned<[f64; 2]>,
+    speed_m_s: Spanned<f64>,
+    robot_speed_m_s: Spanned<f64>,
+    #[serde(default)]
+    heading_deg: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTrajectory {
+    name: Spanned<String>,
+    sample_period_s: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawController {
+    k_forward: Option<Spanned<f64>>,
+    k_lateral: Option<Spanned<f64>>,
+    ff_forward: Option<Spanned<f64>>,
+    ff_lateral: Option<Spanned<f64>>,
+    diff_forward: Option<Spanned<f64>>,
+    diff_lateral: Option<Spanned<f64>>,
+    pursuit_period_s: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawNoise {
+    encoder_phase: Option<Spanned<[f64; 2]>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFaults {
+    slave_off_at_s: Option<Spanned<f64>>,
+    host_silent_after_s: Option<Spanned<f64>>,
+}
+
+/// Every table is a single table.
+fn scenario_shape(file: &TomlFile, s: Shape) -> Res<()> {
+    let tables = [
+        "start",
+        "target",
+        "trajectory",
+        "controller",
+        "noise",
+        "faults",
+    ];
+    if tables.contains(&s.key) && s.array {
+        return Err(file.at(
+            s.span,
+            s.key,
+            format!("write [{}], not [[{}]]: a scenario has one", s.key, s.key),
+        ));
+    }
+    Ok(())
+}
+
+/// Reads and checks a scenario file (and the robot file it names).
+pub fn load(path: &Path) -> Result<Scenario> {
+    let text = read_text(path, "scenario").map_err(|e| anyhow!(e))?;
+    let file = TomlFile {
+        path,
+        text: &text,
+        format: FORMAT,
+        kind: "scenario",
+    };
+    let raw: RawScenario = file.read(scenario_shape).map_err(|e| anyhow!(e))?;
+    file.check_scenario(raw)
+}
+
+impl TomlFile<'_> {
+    fn non_negative(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
+        let x = self.finite(v, key)?;
+        if x < 0.0 {
+            return Err(self.at(v.span(), key, format!("must be >= 0, got {x}")));
+        }
+        Ok(x)
+    }
+
+    fn check_scenario(&self, raw: RawScenario) -> Result<Scenario> {
+        let name = self.name(&raw.name, "name")?;
+        let duration = self.positive(&raw.duration_s, "duration_s")?;
+        let robot = match &raw.robot {
+            Some(r) => Some(self.robot(r)?),
+            None => None,
+        };
+        let mut drive = match &robot {
+            Some(r) => r.drive_geometry().map_err(|e| {
+                anyhow!(self.at(raw.robot.as_ref().unwrap().span(), "robot", e.to_string()))
+            })?,
+            None => firmware_master::drive_setup::SEED_004_DRIVE,
+        };
+        let layout = match &robot {
+            Some(r) => r.odometry_layout().map_err(|e| {
+                anyhow!(self.at(raw.robot.as_ref().unwrap().span(), "robot", e.to_string()))
+            })?,
+            None => robot_math::odometry::Layout::SEED_004,
+        };
+        let has_carriage = layout.carriage_geometry().is_some();
+
+        let s = &raw.start;
+        let start = (
+            self.finite(&s.x_m, "start.x_m")?,
+            self.finite(&s.y_m, "start.y_m")?,
+            self.finite(&s.heading_deg, "start.heading_deg")?
+                .to_radians(),
+        );
+        let start_swivel = match (&s.swivel_deg, has_carriage) {
+            (Some(v), true) => self.finite(v, "start.swivel_deg")?.to_radians(),
+            (Some(v), false) => {
+                return Err(anyhow!(self.at(
+                    v.span(),
+                    "start.swivel_deg",
+                    "this robot has no swivel carriage",
+                )))
+            }
+            // The carriage trails the body's +y (seed 004's pursuit heads that way first).
+            (None, true) => std::f64::consts::FRAC_PI_2,
+            (None, false) => 0.0,
+        };
+
+        let motion = match (&raw.target, &raw.trajectory) {
+            (Some(t), None) => self.target(t.get_ref())?,
+            (None, Some(t)) => self.trajectory(t.get_ref())?,
+            (Some(_), Some(t)) => {
+                return Err(anyhow!(self.at(
+                    t.span(),
+                    "trajectory",
+                    "give either [target] (seed 004's pursuit) or [trajectory] (seed 002's tracking), not both",
+                )))
+            }
+            (None, None) => {
+                return Err(anyhow!(self.error(
+                    Some(0),
+                    Some("target".into()),
+                    "missing: a scenario has a [target] (pursuit) or a [trajectory] (tracking)"
+                        .into(),
+                )))
+            }
+        };
+
+        let mut pursuit_period_s = None;
+        if let Some(c) = &raw.controller {
+            let gain = |v: &Option<Spanned<f64>>, key: &str, positive: bool| -> Res<Option<i32>> {
+                let Some(v) = v else { return Ok(None) };
+                let key = format!("controller.{key}");
+                let x = if positive {
+                    self.positive(v, &key)?
+                } else {
+                    self.non_negative(v, &key)?
+                };
+                if x > 1000.0 {
+                    return Err(self.at(v.span(), &key, format!("must be at most 1000, got {x}")));
+                }
+                Ok(Some((x * 1000.0).round() as i32))
+            };
+            if let Some(k) = gain(&c.k_forward, "k_forward", true)? {
+                drive.k_forward_milli = k as u32;
+            }
+            if let Some(k) = gain(&c.k_lateral, "k_lateral", true)? {
+                drive.k_lateral_milli = k as u32;
+            }
+            if let Some(k) = gain(&c.ff_forward, "ff_forward", false)? {
+                drive.ff_forward_milli = k;
+            }
+            if let Some(k) = gain(&c.ff_lateral, "ff_lateral", false)? {
+                drive.ff_lateral_milli = k;
+            }
+            if let Some(k) = gain(&c.diff_forward, "diff_forward", false)? {
+                drive.diff_forward_milli = k;
+            }
+            if let Some(k) = gain(&c.diff_lateral, "diff_lateral", false)? {
+                drive.diff_lateral_milli = k;
+            }
+            if let Some(p) = &c.pursuit_period_s {
+                pursuit_period_s = Some(self.non_negative(p, "controller.pursuit_period_s")?);
+            }
+        }
+
+        let encoder_phase = match raw.noise.as_ref().and_then(|n| n.encoder_phase.as_ref()) {
+            Some(p) => {
+                let v = *p.get_ref();
+                if !v.iter().all(|x| (0.0..1.0).contains(x)) {
+                    return Err(anyhow!(self.at(
+                        p.span(),
+                        "noise.encoder_phase",
+                        format!("fractions of a count, each in [0, 1): got {v:?}"),
+                    )));
+                }
+                Some(v)
+            }
+            None => None,
+        };
+        let mut faults = Faults::default();
+        if let Some(f) = &raw.faults {
+            if let Some(v) = &f.slave_off_at_s {
+                faults.slave_off_at = Some(self.non_negative(v, "faults.slave_off_at_s")?);
+            }
+            if let Some(v) = &f.host_silent_after_s {
+                faults.host_silent_after =
+                    Some(self.non_negative(v, "faults.host_silent_after_s")?);
+            }
+        }
+
+        Ok(Scenario {
+            name,
+            description: raw.description.trim().to_string(),
+            robot: robot.map_or_else(|| "seed004 (power-on)".into(), |r| r.name),
+            drive,
+            layout,
+            start,
+            start_swivel,
+            motion,
+            duration,
+            pursuit_period_s,
+            encoder_phase,
+            faults,
+        })
+    }
+
+    fn robot(&self, r: &Spanned<String>) -> Result<Robot> {
+        let rel = PathBuf::from(r.get_ref());
+        let path = match self.path.parent() {
+            Some(dir) if rel.is_relative() => dir.join(&rel),
+            _ => rel,
+        };
+        Robot::load(&path).map_err(|e: FileError| {
+            anyhow!(self.at(
+                r.span(),
+                "robot",
+                format!("cannot use {}: {e}", path.display())
+            ))
+        })
+    }
+
+    fn target(&self, t: &RawTarget) -> Result<Motion> {
+        let point = |v: &Spanned<[f64; 2]>, key: &str| -> Res<(f64, f64)> {
+            let [x, y] = *v.get_ref();
+            if !(x.is_finite() && y.is_finite()) {
+                return Err(self.at(v.span(), key, "must be finite numbers"));
+            }
+            Ok((x, y))
+        };
+        Ok(Motion::Pursue {
+            target_from: point(&t.from_m, "target.from_m")?,
+            target_to: point(&t.to_m, "target.to_m")?,
+            target_speed: self.non_negative(&t.speed_m_s, "target.speed_m_s")?,
+            robot_speed: self.positive(&t.robot_speed_m_s, "target.robot_speed_m_s")?,
+            heading: t.heading_deg.to_radians(),
+        })
+    }
+
+    fn trajectory(&self, t: &RawTrajectory) -> Result<Motion> {
+        let name = self.name(&t.name, "trajectory.name")?;
+        if trajectory::build(&name).is_none() {
+            let known: Vec<_> = trajectory::catalogue().iter().map(|n| n.name).collect();
+            return Err(anyhow!(self.at(
+                t.name.span(),
+                "trajectory.name",
+                format!(
+                    "no trajectory \"{name}\"; the catalogue has: {}",
+                    known.join(", ")
+                ),
+            )));
+        }
+        let sample_period_s = match &t.sample_period_s {
+            Some(p) => {
+                let v = self.positive(p, "trajectory.sample_period_s")?;
+                if !(0.001..=0.2).contains(&v) {
+                    return Err(anyhow!(self.at(
+                        p.span(),
+                        "trajectory.sample_period_s",
+                        format!(
+                            "must be 0.001 to 0.2 s (the master's host timeout is 0.5 s), got {v}"
+                        ),
+                    )));
+                }
+                v
+            }
+            None => SAMPLE_PERIOD_S,
+        };
+        Ok(Motion::Track {
+            trajectory: name,
+            sample_period_s,
+        })
+    }
+}
