@@ -232,15 +232,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 // The board's configuration.
                 _ => {}
             }
-            if encoder_phase.is_some() {
-                opts.encoder_phase = encoder_phase;
-            }
-            if fault_slave_off_at.is_some() {
-                opts.faults.slave_off_at = fault_slave_off_at;
-            }
-            if fault_host_silent_after.is_some() {
-                opts.faults.host_silent_after = fault_host_silent_after;
-            }
+            // The command line over the scenario's own settings.
+            opts.encoder_phase = encoder_phase.or(opts.encoder_phase);
+            let f = &mut opts.faults;
+            f.slave_off_at = fault_slave_off_at.or(f.slave_off_at);
+            f.host_silent_after = fault_host_silent_after.or(f.host_silent_after);
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }

@@ -31,22 +31,6 @@ impl DriveKinematics {
         }
     }
 
-    /// Fastest the tracked point can move in its slowest direction, m/s: the speed a request
-    /// may ask for and always get.
-    pub fn safe_speed(&self) -> f64 {
-        match self {
-            // Seed 003: 2·v_max/√3 in the six best directions, v_max along a wheel's rolling
-            // direction (the worst).
-            DriveKinematics::Omni3(o) => o.v_max,
-            // Straight ahead every wheel turns at the point's speed; sideways, a wheel at y
-            // turns at |y|/|l| times it.
-            DriveKinematics::OffsetDiff(d) => {
-                let arm = libm::fabs(d.y_left).max(libm::fabs(d.y_right)) / libm::fabs(d.offset);
-                d.v_max / libm::sqrt(1.0 + arm * arm) / (1.0 + 1e-9)
-            }
-        }
-    }
-
     /// Whether the platform chooses its heading (omni), or the heading follows from the
     /// tracked point's motion (seed 002's chassis: its top plate turns on its own motor).
     pub fn holds_heading(&self) -> bool {
@@ -92,39 +76,11 @@ impl DriveKinematics {
             DriveKinematics::OffsetDiff(d) => d.twist([wheels[0], wheels[1]]),
         }
     }
-
-    /// Motors this platform drives.
-    pub fn motors(&self) -> usize {
-        match self {
-            DriveKinematics::Omni3(_) => 3,
-            DriveKinematics::OffsetDiff(_) => 2,
-        }
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn safe_speed_is_reachable_in_every_direction() {
-        let drives = [
-            DriveKinematics::Omni3(Omni3::new(0.22, 1.0).unwrap()),
-            DriveKinematics::OffsetDiff(OffsetDiff::new(0.24, -0.18, 0.1, 0.8).unwrap()),
-        ];
-        for d in drives {
-            let v = d.safe_speed();
-            let mut tightest = f64::INFINITY;
-            for k in 0..3600 {
-                let a = k as f64 * core::f64::consts::TAU / 3600.0;
-                let (w, _) = d.command(v * libm::cos(a), v * libm::sin(a), 0.0);
-                let peak = w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-                assert!(peak <= d.v_max() * (1.0 + 1e-9), "{d:?} at {a}: {peak}");
-                tightest = tightest.min(d.v_max() - peak);
-            }
-            assert!(tightest < 1e-3 * d.v_max(), "{d:?}: not the tightest bound");
-        }
-    }
 
     #[test]
     fn a_differential_command_leaves_motor_3_off() {

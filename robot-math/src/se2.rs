@@ -64,6 +64,12 @@ impl Pose2 {
         }
     }
 
+    /// Where a point at `(x, y)` in this pose's body frame is in the field.
+    pub fn transform_point(self, (x, y): (f64, f64)) -> (f64, f64) {
+        let (s, c) = (sin(self.theta), cos(self.theta));
+        (self.x + c * x - s * y, self.y + s * x + c * y)
+    }
+
     pub fn distance_to(self, other: Pose2) -> f64 {
         libm::hypot(self.x - other.x, self.y - other.y)
     }

@@ -180,12 +180,7 @@ mod tests {
                 radius * rate * libm::sin(rate * s),
             ),
         };
-        let point = |b: &Pose2| {
-            (
-                b.x + 0.2 * libm::cos(b.theta),
-                b.y + 0.2 * libm::sin(b.theta),
-            )
-        };
+        let point = |b: &Pose2| b.transform_point((d.offset, 0.0));
         let mut worst_late = 0.0f64;
         let mut last_v = f64::INFINITY;
         for k in 0..10_000 {

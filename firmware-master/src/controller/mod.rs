@@ -50,14 +50,24 @@ enum Goal {
 /// Where the tracked point should be now, and how it moves.
 struct Reference {
     point: PointReference,
-    heading: f64,
+    /// The heading to hold, for a platform that chooses its heading.
+    heading: Option<f64>,
     omega: f64,
     /// Not moving: the robot may arrive and hold.
     standing: bool,
 }
 
+/// Whether a path sample stands still. A chassis whose heading follows its tracked point
+/// (seed 002: A would move sideways were it to turn) stands whenever the point does.
+fn sample_stands(sample: &TrackPoint, holds_heading: bool) -> bool {
+    sample.velocity_um_s == [0; 2] && (sample.omega_urad_s == 0 || !holds_heading)
+}
+
 impl Goal {
-    fn reference(&self, now: Instant) -> Reference {
+    /// The reference now; `holds_heading`: whether the platform chooses its heading (omni)
+    /// or its heading follows the tracked point's motion (seed 002's chassis), which then
+    /// arrives by position alone.
+    fn reference(&self, now: Instant, holds_heading: bool) -> Reference {
         match *self {
             Goal::Pursue {
                 target, heading, ..
@@ -68,7 +78,7 @@ impl Goal {
                         position,
                         velocity: (0.0, 0.0),
                     },
-                    heading,
+                    heading: holds_heading.then_some(heading),
                     omega: 0.0,
                     standing,
                 }
@@ -83,24 +93,25 @@ impl Goal {
                         position: (x + v[0] * dt, y + v[1] * dt),
                         velocity: (v[0], v[1]),
                     },
-                    heading: sample.heading.to_radians() + omega * dt,
+                    heading: holds_heading.then(|| sample.heading.to_radians() + omega * dt),
                     omega,
-                    standing: v == [0.0; 2] && omega == 0.0,
+                    standing: sample_stands(&sample, holds_heading),
                 }
             }
         }
     }
 
-    /// A goal that stands still at one place and heading.
-    fn standing_at(&self) -> Option<(f64, f64, f64)> {
+    /// A goal that stands still at one place (and heading, where the platform holds one).
+    fn standing_at(&self, holds_heading: bool) -> Option<(f64, f64, Option<f64>)> {
+        let heading = |h: f64| holds_heading.then_some(h);
         match *self {
             Goal::Pursue {
-                target, heading, ..
-            } => (target.from == target.to).then_some((target.to.0, target.to.1, heading)),
+                target, heading: h, ..
+            } => (target.from == target.to).then_some((target.to.0, target.to.1, heading(h))),
             Goal::Track { sample, .. } => {
                 let (x, y) = sample.position.to_metres();
-                (sample.velocity_um_s == [0; 2] && sample.omega_urad_s == 0)
-                    .then(|| (x, y, sample.heading.to_radians()))
+                sample_stands(&sample, holds_heading)
+                    .then(|| (x, y, heading(sample.heading.to_radians())))
             }
         }
     }
@@ -229,11 +240,12 @@ impl Controller {
                 if speed > self.drive.kinematics.max_speed() {
                     return Some(self.reject(RejectReason::InvalidTarget));
                 }
-                let was_tracking = matches!(self.goal, Some(Goal::Track { .. }));
-                self.set_goal(Goal::Track { sample, at: now });
-                if !was_tracking {
+                if !matches!(self.goal, Some(Goal::Track { .. })) {
+                    // A new path: no memory of another motion's commands or positions.
                     self.tracker.reset();
+                    self.last_point = None;
                 }
+                self.set_goal(Goal::Track { sample, at: now });
                 None
             }
             HostToMaster::SetDrive(g) => match DriveSetup::from_geometry(&g) {
@@ -261,8 +273,9 @@ impl Controller {
     /// Take a new goal. The same standing goal again (a host that refreshes its target, or
     /// keeps sending a path's last sample) keeps a hold; anything else starts over.
     fn set_goal(&mut self, goal: Goal) {
+        let holds = self.drive.kinematics.holds_heading();
         let same = matches!(
-            (self.goal.and_then(|g| g.standing_at()), goal.standing_at()),
+            (self.goal.and_then(|g| g.standing_at(holds)), goal.standing_at(holds)),
             (Some(a), Some(b)) if a == b
         );
         self.goal = Some(goal);
@@ -433,21 +446,14 @@ impl Controller {
             return self.halt();
         };
 
-        let mut r = goal.reference(now);
-        // Seed 002's chassis cannot turn with its tracked point still (A would move sideways):
-        // a path that only turns stands still for it.
-        if !self.drive.kinematics.holds_heading() && r.point.velocity == (0.0, 0.0) {
-            r.standing = true;
-        }
-        let point = self.tracked_point(&est);
+        let r = goal.reference(now, self.drive.kinematics.holds_heading());
+        // Seed 002's A; an omni robot's reference point.
+        let point = est.transform_point(self.drive.kinematics.tracked_point());
         let target = r.point.position;
         let off = libm::hypot(target.0 - point.0, target.1 - point.1);
-        // A chassis that cannot choose its heading arrives by position alone.
-        let turned = if self.drive.kinematics.holds_heading() {
-            libm::fabs(wrap_angle(r.heading - est.theta))
-        } else {
-            0.0
-        };
+        let turned = r
+            .heading
+            .map_or(0.0, |h| libm::fabs(wrap_angle(h - est.theta)));
         if r.standing
             && off < self.cfg.arrive_tolerance
             && turned < self.cfg.arrive_heading_tolerance
@@ -477,8 +483,10 @@ impl Controller {
             Goal::Track { .. } => {
                 let measured = self.point_velocity_since_last(now, point, est.theta);
                 let (f, l) = self.tracker.command(&r.point, point, est.theta, measured);
+                // The heading hold (a chassis that cannot choose its heading ignores it).
                 let p = &self.cfg.pursuit;
-                let omega = (r.omega + p.heading_gain * wrap_angle(r.heading - est.theta))
+                let hold = r.heading.map_or(0.0, |h| wrap_angle(h - est.theta));
+                let omega = (r.omega + p.heading_gain * hold)
                     .max(-p.max_spin)
                     .min(p.max_spin);
                 (f, l, omega)
@@ -497,13 +505,6 @@ impl Controller {
         });
         self.status |= status::MOTORS_ON;
         Drive::Duty(self.duty)
-    }
-
-    /// Where the tracked point (seed 002's A; an omni robot's reference point) is.
-    fn tracked_point(&self, est: &Pose2) -> (f64, f64) {
-        let (px, py) = self.drive.kinematics.tracked_point();
-        let (s, c) = (libm::sin(est.theta), libm::cos(est.theta));
-        (est.x + c * px - s * py, est.y + s * px + c * py)
     }
 
     /// The tracked point's robot-frame velocity since the last control step (zero at first).

@@ -3,15 +3,11 @@
 
 use anyhow::{bail, Result};
 use firmware_master::drive_setup::{DriveSetup, SEED_004_DRIVE};
+use protocol::metres_to_um as um;
 use protocol::serial::{DriveGeometry, DriveKind};
 use robot_math::omni3::Omni3;
 
 use super::robot::Robot;
-
-/// Micrometres (or µm/s) in the protocol's integers.
-fn um(v: f64) -> i64 {
-    (v * 1e6).round() as i64
-}
 
 impl Robot {
     /// The master's drive for this robot: seed 003's three omni wheels (any d), or a
@@ -72,9 +68,9 @@ impl Robot {
                     );
                 }
                 DriveKind::OffsetDiff {
-                    y_left_um: um(left) as i32,
-                    y_right_um: um(right) as i32,
-                    offset_um: um(offset) as i32,
+                    y_left_um: um(left),
+                    y_right_um: um(right),
+                    offset_um: um(offset),
                 }
             }
             n => bail!("robot {name}: the master drives 3 omni wheels or 2 on an axle, not {n}"),

@@ -14,7 +14,7 @@ use toml::Spanned;
 
 use super::robot::Robot;
 use super::toml_file::{read_text, FileError, Res, Shape, TomlFile};
-use crate::sim::emulator::{Faults, Motion, Scenario};
+use crate::sim::emulator::{Faults, Motion, Scenario, POWER_ON_ROBOT};
 use crate::sim::trajectory;
 
 /// The value of the `format` key this module reads.
@@ -128,32 +128,24 @@ pub fn load(path: &Path) -> Result<Scenario> {
 }
 
 impl TomlFile<'_> {
-    fn non_negative(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
-        let x = self.finite(v, key)?;
-        if x < 0.0 {
-            return Err(self.at(v.span(), key, format!("must be >= 0, got {x}")));
-        }
-        Ok(x)
-    }
-
     fn check_scenario(&self, raw: RawScenario) -> Result<Scenario> {
         let name = self.name(&raw.name, "name")?;
         let duration = self.positive(&raw.duration_s, "duration_s")?;
-        let robot = match &raw.robot {
-            Some(r) => Some(self.robot(r)?),
-            None => None,
-        };
-        let mut drive = match &robot {
-            Some(r) => r.drive_geometry().map_err(|e| {
-                anyhow!(self.at(raw.robot.as_ref().unwrap().span(), "robot", e.to_string()))
-            })?,
-            None => firmware_master::drive_setup::SEED_004_DRIVE,
-        };
-        let layout = match &robot {
-            Some(r) => r.odometry_layout().map_err(|e| {
-                anyhow!(self.at(raw.robot.as_ref().unwrap().span(), "robot", e.to_string()))
-            })?,
-            None => robot_math::odometry::Layout::SEED_004,
+        // The robot's drive (for the master) and sensors (for the slave); without a robot
+        // file, the boards' power-on robot.
+        let (robot, mut drive, layout) = match &raw.robot {
+            Some(r) => {
+                let robot = self.robot(r)?;
+                let here = |e: anyhow::Error| anyhow!(self.at(r.span(), "robot", e.to_string()));
+                let drive = robot.drive_geometry().map_err(here)?;
+                let layout = robot.odometry_layout().map_err(here)?;
+                (robot.name, drive, layout)
+            }
+            None => (
+                POWER_ON_ROBOT.to_string(),
+                firmware_master::drive_setup::SEED_004_DRIVE,
+                robot_math::odometry::Layout::SEED_004,
+            ),
         };
         let has_carriage = layout.carriage_geometry().is_some();
 
@@ -264,7 +256,7 @@ impl TomlFile<'_> {
         Ok(Scenario {
             name,
             description: raw.description.trim().to_string(),
-            robot: robot.map_or_else(|| "seed004 (power-on)".into(), |r| r.name),
+            robot,
             drive,
             layout,
             start,

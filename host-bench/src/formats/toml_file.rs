@@ -113,6 +113,14 @@ impl TomlFile<'_> {
         }
     }
 
+    pub fn non_negative(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
+        let x = self.finite(v, key)?;
+        if x < 0.0 {
+            return Err(self.at(v.span(), key, format!("must be >= 0, got {x}")));
+        }
+        Ok(x)
+    }
+
     pub fn name(&self, v: &Spanned<String>, key: &str) -> Res<String> {
         let s = v.get_ref().trim();
         if s.is_empty() {

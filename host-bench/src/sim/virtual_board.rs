@@ -140,12 +140,10 @@ impl Course {
     /// The body twist that heads for the next corner.
     fn twist(&mut self, body: Pose2) -> Twist {
         // The point that goes round the square: the body origin, or the axle's midpoint.
-        let (px, py) = match self.steering {
+        let (fx, fy) = body.transform_point(match self.steering {
             Steering::Holonomic => (0.0, 0.0),
             Steering::Axle { mid, .. } => mid,
-        };
-        let (s, c) = body.theta.sin_cos();
-        let (fx, fy) = (body.x + c * px - s * py, body.y + s * px + c * py);
+        });
         let (cx, cy) = self.corners[self.next];
         let (dx, dy) = (cx - fx, cy - fy);
         let dist = dx.hypot(dy);
@@ -183,22 +181,14 @@ impl Course {
 }
 
 /// The virtual board's robot: the master's power-on drive, which must be omni wheels (the
-/// course steers the body's twist freely).
-struct OmniDrive {
-    kinematics: Omni3,
-    speed_at_full_duty: f64,
-}
-
-fn omni_drive(master: &MasterConfig) -> Result<OmniDrive> {
+/// course steers the body's twist freely), and its wheel speed at full duty.
+fn omni_drive(master: &MasterConfig) -> Result<(Omni3, f64)> {
     match DriveSetup::from_geometry(&master.drive) {
         Some(DriveSetup {
-            kinematics: DriveKinematics::Omni3(kinematics),
+            kinematics: DriveKinematics::Omni3(omni),
             speed_at_full_duty,
             ..
-        }) => Ok(OmniDrive {
-            kinematics,
-            speed_at_full_duty,
-        }),
+        }) => Ok((omni, speed_at_full_duty)),
         Some(_) => anyhow::bail!("the virtual board drives omni wheels only"),
         None => anyhow::bail!("the master's drive geometry is impossible"),
     }
@@ -216,12 +206,12 @@ pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
 /// Serve on `pty` until `stop` says so (forever for the CLI).
 pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
-    let drive = omni_drive(&opts.master)?;
+    let (drive, speed_at_full_duty) = omni_drive(&opts.master)?;
     let sensors = MeasuringSensors::from_layout(&opts.slave.layout)
         .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
     let plant_cfg = PlantConfig {
-        drive: DriveKinematics::Omni3(drive.kinematics),
-        speed_at_full_duty: drive.speed_at_full_duty,
+        drive: DriveKinematics::Omni3(drive),
+        speed_at_full_duty,
         motor_tau: 0.05,
         sensors,
     };
@@ -237,8 +227,8 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         next: 0,
         speed: opts.course_speed,
         steering: Steering::for_sensors(&sensors),
-        drive: drive.kinematics,
-        speed_at_full_duty: drive.speed_at_full_duty,
+        drive,
+        speed_at_full_duty,
     };
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
@@ -384,10 +374,10 @@ mod tests {
     fn an_axle_robot_is_driven_round_the_square_without_sliding_sideways() {
         let layout = axle_layout();
         let sensors = MeasuringSensors::from_layout(&layout).unwrap();
-        let drive = omni_drive(&MasterConfig::DEFAULT).unwrap();
+        let (drive, speed_at_full_duty) = omni_drive(&MasterConfig::DEFAULT).unwrap();
         let cfg = PlantConfig {
-            drive: DriveKinematics::Omni3(drive.kinematics),
-            speed_at_full_duty: drive.speed_at_full_duty,
+            drive: DriveKinematics::Omni3(drive),
+            speed_at_full_duty,
             motor_tau: 0.05,
             sensors,
         };
@@ -397,8 +387,8 @@ mod tests {
             next: 0,
             speed: 0.3,
             steering: Steering::for_sensors(&sensors),
-            drive: drive.kinematics,
-            speed_at_full_duty: drive.speed_at_full_duty,
+            drive,
+            speed_at_full_duty,
         };
         let mut odo = Odometry::new(
             &layout,

@@ -77,13 +77,6 @@ pub async fn session(
         send(&mut tx, &log, &HostToMaster::SetOdometry(algorithm)).await;
         // Give the master a few polls to get both commands to the slave and acknowledged.
         Timer::after_millis(20).await;
-        let reference = match ReferencePath::new(&scenario.motion) {
-            Ok(r) => r,
-            Err(e) => {
-                log.borrow_mut().problem = Some(e.to_string());
-                return;
-            }
-        };
         match scenario.motion {
             Motion::Pursue {
                 target_from,
@@ -109,6 +102,13 @@ pub async fn session(
             Motion::Track {
                 sample_period_s, ..
             } => {
+                let reference = match ReferencePath::new(&scenario.motion) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        log.borrow_mut().problem = Some(e.to_string());
+                        return;
+                    }
+                };
                 let t0 = Instant::now();
                 log.borrow_mut().follow_sent_at = Some(secs(t0));
                 let period = Duration::from_micros((sample_period_s * 1e6).round() as u64);
@@ -142,7 +142,7 @@ fn secs(t: Instant) -> f64 {
 }
 
 fn track_point(s: Sample) -> TrackPoint {
-    let um = |v: f64| (v * 1e6).round() as i32;
+    let um = protocol::metres_to_um;
     TrackPoint {
         position: Point::from_metres(s.position.0, s.position.1),
         velocity_um_s: [um(s.velocity.0), um(s.velocity.1)],

@@ -84,19 +84,8 @@ pub enum Motion {
     },
 }
 
-impl Motion {
-    /// Where the tracked point should end up.
-    pub fn goal(&self) -> Option<(f64, f64)> {
-        match self {
-            Motion::Pursue { target_to, .. } => Some(*target_to),
-            Motion::Track { trajectory, .. } => {
-                let t = crate::sim::trajectory::build(trajectory)?;
-                let p = t.pose(t.duration());
-                Some((p.x, p.y))
-            }
-        }
-    }
-}
+/// What a scenario without a robot file runs: the boards' compiled-in robot.
+pub const POWER_ON_ROBOT: &str = "seed004 (power-on)";
 
 impl Scenario {
     /// Seed 004's pursuit: the target moves from (0, 300) cm along +x at 35 cm/s to
@@ -105,7 +94,7 @@ impl Scenario {
         Scenario {
             name: "seed004-pursuit".into(),
             description: "seed 004: target (0,3) m -> (2.5,3) m at 0.35 m/s, robot at 0.6 m/s from the origin".into(),
-            robot: "seed004 (power-on)".into(),
+            robot: POWER_ON_ROBOT.into(),
             drive: firmware_master::drive_setup::SEED_004_DRIVE,
             layout: Layout::SEED_004,
             start: (0.0, 0.0, 0.0),
@@ -381,10 +370,9 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     // The motors' switch-ons and driven time when the master first said it arrived.
     let mut at_arrival: Option<(u64, f64)> = None;
     let reference = reference::ReferencePath::new(&scenario.motion)?;
+    let motion_s = reference.duration();
     let tracking = matches!(scenario.motion, Motion::Track { .. });
-    let tracked = DriveSetup::from_geometry(&scenario.drive)
-        .map(|d| d.kinematics.tracked_point())
-        .unwrap_or_default();
+    let tracked = drive.kinematics.tracked_point();
     // Tracking error of the true tracked point against the reference, sampled with the log,
     // from a second after the path started: (sum of squares, count, max).
     let mut tracking_error = (0.0f64, 0u64, 0.0f64);
@@ -416,12 +404,14 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             }
         }
         // Arrival at the end: a path may stop (and the master hold) on its way.
-        let path_over = host_log
-            .borrow()
-            .follow_sent_at
-            .is_some_and(|t0| next.as_micros() as f64 * 1e-6 - t0 >= reference.duration());
+        let motion_over = || {
+            host_log
+                .borrow()
+                .follow_sent_at
+                .is_some_and(|t0| next.as_micros() as f64 * 1e-6 - t0 >= motion_s)
+        };
         if at_arrival.is_none()
-            && path_over
+            && motion_over()
             && master_shared.with(|c| c.status()).unwrap_or(0) & protocol::serial::status::ARRIVED
                 != 0
         {
@@ -435,7 +425,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             let wanted = goal_t0.map(|t0| reference.at(t_s - t0).position);
             if let (true, Some(t0), Some(r)) = (tracking, goal_t0, wanted) {
                 if t_s - t0 >= TRACKING_SCORED_AFTER_S {
-                    let p = point_of(plant.borrow().body(), tracked);
+                    let p = plant.borrow().body().transform_point(tracked);
                     let e = (p.0 - r.0).hypot(p.1 - r.1);
                     tracking_error.0 += e * e;
                     tracking_error.1 += 1;
@@ -459,11 +449,9 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let counters = master_shared.with(|c| c.counters()).unwrap_or_default();
     let h = host_log.borrow();
     let slave_rx_rejected = slave_shared.frame().rx_rejected as u64;
-    let end_point = point_of(truth, tracked);
-    let distance_to_goal = scenario
-        .motion
-        .goal()
-        .map_or(f64::NAN, |g| (end_point.0 - g.0).hypot(end_point.1 - g.1));
+    let end_point = truth.transform_point(tracked);
+    let goal = reference.at(motion_s).position;
+    let distance_to_goal = (end_point.0 - goal.0).hypot(end_point.1 - goal.1);
     let status = master_shared.with(|c| c.status()).unwrap_or(0);
     let slave_frame = slave_shared.frame();
     if slave_frame.status & protocol::spi::slave_status::ALGORITHM_UNSUPPORTED != 0 {
@@ -515,15 +503,6 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
 /// The tracking error is scored from this long after the path starts (the robot may start
 /// off it), seconds.
 pub const TRACKING_SCORED_AFTER_S: f64 = 1.0;
-
-/// Where a point at `offset` in the body frame is in the field.
-fn point_of(body: Pose2, offset: (f64, f64)) -> (f64, f64) {
-    let (s, c) = body.theta.sin_cos();
-    (
-        body.x + c * offset.0 - s * offset.1,
-        body.y + s * offset.0 + c * offset.1,
-    )
-}
 
 fn secs_to_instant(s: f64) -> Instant {
     Instant::from_micros((s.max(0.0) * 1e6).round() as u64)
