@@ -32,6 +32,14 @@ pub use units::{metres_to_um, BinaryAngle, Point, Pose};
 /// Version of the wire protocol described by this crate. Bumped on any incompatible change.
 pub const PROTOCOL_VERSION: u16 = 3;
 
+/// [`schema_fingerprint`] of this crate, as a constant: what the firmware reports.
+///
+/// Computing it walks every message's schema, and on the board that walk and the schemas it
+/// reads cost ~5 KB of flash for one number that only changes when the code does. So the
+/// boards send this constant and the golden test (`fingerprint_is_pinned`) proves it equals
+/// the computed value; a message change that forgets to update it fails that test.
+pub const SCHEMA_FINGERPRINT: u32 = 0xd227_f65c;
+
 /// A CRC-32 over the postcard schemas of every message type in this crate.
 ///
 /// The master reports it in its hello reply; the host compares it with its own. Equal

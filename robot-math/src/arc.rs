@@ -61,7 +61,7 @@ impl ArcOdometry {
         // Eq. (1): the heading accumulates the per-step turn ...
         let theta = self.pose.theta + d.omega;
         // ... eqs. (3)-(4): and the step goes along the heading after the turn.
-        let (s, c) = (libm::sin(theta), libm::cos(theta));
+        let (s, c) = (crate::trig::sin(theta), crate::trig::cos(theta));
         self.pose = Pose2::new(
             self.pose.x + c * d.vx - s * d.vy,
             self.pose.y + s * d.vx + c * d.vy,

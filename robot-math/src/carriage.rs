@@ -76,8 +76,8 @@ impl CarriageGeometry {
     pub fn carriage_pose(&self, body: Pose2, beta: f64) -> Pose2 {
         let phi = body.theta + beta;
         Pose2::new(
-            body.x - self.trail * libm::cos(phi),
-            body.y - self.trail * libm::sin(phi),
+            body.x - self.trail * crate::trig::cos(phi),
+            body.y - self.trail * crate::trig::sin(phi),
             phi,
         )
     }
@@ -85,8 +85,8 @@ impl CarriageGeometry {
     /// The body pose for a carriage pose and swivel angle.
     pub fn body_pose(&self, carriage: Pose2, beta: f64) -> Pose2 {
         Pose2::new(
-            carriage.x + self.trail * libm::cos(carriage.theta),
-            carriage.y + self.trail * libm::sin(carriage.theta),
+            carriage.x + self.trail * crate::trig::cos(carriage.theta),
+            carriage.y + self.trail * crate::trig::sin(carriage.theta),
             carriage.theta - beta,
         )
     }

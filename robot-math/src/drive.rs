@@ -7,6 +7,9 @@ use crate::offset_diff::OffsetDiff;
 use crate::omni3::Omni3;
 use crate::Twist;
 
+/// 2/√3: an omni triangle's top translation speed over v_max (seed 003).
+const TWO_BY_SQRT_3: f64 = 1.154_700_538_379_251_5;
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DriveKinematics {
     Omni3(Omni3),
@@ -41,7 +44,7 @@ impl DriveKinematics {
     /// never be met.
     pub fn max_speed(&self) -> f64 {
         match self {
-            DriveKinematics::Omni3(o) => 2.0 * o.v_max / libm::sqrt(3.0),
+            DriveKinematics::Omni3(o) => o.v_max * TWO_BY_SQRT_3,
             DriveKinematics::OffsetDiff(d) => d.v_max,
         }
     }

@@ -26,6 +26,7 @@ pub mod sensors;
 pub mod ticks;
 pub mod timing;
 pub mod tracking;
+pub mod trig;
 pub mod wheel;
 pub mod wheelset;
 

@@ -136,12 +136,12 @@ mod tests {
         let d = OffsetDiff::symmetric(b, l, 1.0).unwrap();
         for &theta in &[0.0, 0.4, 2.0, -1.3] {
             let alpha = FRAC_PI_2 - theta;
-            let (sa, ca) = (libm::sin(alpha), libm::cos(alpha));
+            let (sa, ca) = (crate::trig::sin(alpha), crate::trig::cos(alpha));
             for &(vx, vy) in &[(0.3, 0.1), (-0.2, 0.25), (0.0, -0.3)] {
                 // Seed: v1 = (sin α + b/l cos α) V_X + (cos α − b/l sin α) V_Y, v2 likewise.
                 let v1 = (sa + b / l * ca) * vx + (ca - b / l * sa) * vy;
                 let v2 = (sa - b / l * ca) * vx + (ca + b / l * sa) * vy;
-                let (s, c) = (libm::sin(theta), libm::cos(theta));
+                let (s, c) = (crate::trig::sin(theta), crate::trig::cos(theta));
                 let [left, right] = d.wheel_speeds(c * vx + s * vy, -s * vx + c * vy);
                 assert!((v1 - left).abs() < 1e-12 && (v2 - right).abs() < 1e-12);
             }

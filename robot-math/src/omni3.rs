@@ -36,7 +36,11 @@ impl Omni3 {
     pub fn wheels(d: f64) -> [Wheel; 3] {
         core::array::from_fn(|i| {
             let a = i as f64 * 2.0 * PI / 3.0;
-            Wheel::at(d * libm::cos(a), d * libm::sin(a), a + PI / 2.0)
+            Wheel::at(
+                d * crate::trig::cos(a),
+                d * crate::trig::sin(a),
+                a + PI / 2.0,
+            )
         })
     }
 

@@ -45,7 +45,7 @@ impl SegmentTarget {
     /// Where the target is at time `t`, and whether it has stopped at `to`.
     pub fn position(&self, t: f64) -> ((f64, f64), bool) {
         let (dx, dy) = (self.to.0 - self.from.0, self.to.1 - self.from.1);
-        let len = libm::hypot(dx, dy);
+        let len = crate::se2::norm(dx, dy);
         let travelled = (t - self.t0).max(0.0) * self.speed;
         if len == 0.0 || travelled >= len {
             return (self.to, true);
@@ -84,7 +84,7 @@ pub fn euler_step(pos: (f64, f64), target: (f64, f64), speed: f64) -> (f64, f64)
 /// The field velocity straight at `target` at the speed `speed_at(distance)`; zero on it.
 fn towards(pos: (f64, f64), target: (f64, f64), speed_at: impl Fn(f64) -> f64) -> (f64, f64) {
     let (ex, ey) = (target.0 - pos.0, target.1 - pos.1);
-    let dist = libm::hypot(ex, ey);
+    let dist = crate::se2::norm(ex, ey);
     if dist < 1e-9 {
         return (0.0, 0.0);
     }
@@ -94,7 +94,7 @@ fn towards(pos: (f64, f64), target: (f64, f64), speed_at: impl Fn(f64) -> f64) -
 
 /// Rotate a field-frame velocity into the body frame of a robot at `heading`.
 pub fn field_to_body(vx: f64, vy: f64, heading: f64) -> (f64, f64) {
-    let (s, c) = (libm::sin(heading), libm::cos(heading));
+    let (s, c) = (crate::trig::sin(heading), crate::trig::cos(heading));
     (c * vx + s * vy, -s * vx + c * vy)
 }
 

@@ -150,7 +150,7 @@ impl TimingOdometry {
     /// returned is still the body origin's.
     pub fn with_tracked_point(mut self, x: f64, y: f64) -> Self {
         let o = self.pose();
-        let (s, c) = (libm::sin(o.theta), libm::cos(o.theta));
+        let (s, c) = (crate::trig::sin(o.theta), crate::trig::cos(o.theta));
         self.r_body = (x, y);
         self.px = o.x + c * x - s * y;
         self.py = o.y + s * x + c * y;
@@ -199,7 +199,7 @@ impl TimingOdometry {
 
     /// The body origin's pose (θ not wrapped).
     pub fn pose(&self) -> Pose2 {
-        let (s, c) = (libm::sin(self.theta), libm::cos(self.theta));
+        let (s, c) = (crate::trig::sin(self.theta), crate::trig::cos(self.theta));
         let (x, y) = self.r_body;
         Pose2::new(
             self.px - (c * x - s * y),
@@ -264,7 +264,7 @@ impl TimingOdometry {
         // The tracked point's body velocity v + ω × r, times dt.
         let bx = d.vx - d.omega * y;
         let by = d.vy + d.omega * x;
-        let (s, c) = (libm::sin(self.theta), libm::cos(self.theta));
+        let (s, c) = (crate::trig::sin(self.theta), crate::trig::cos(self.theta));
         self.px += c * bx - s * by;
         self.py += s * bx + c * by;
         self.theta += d.omega;

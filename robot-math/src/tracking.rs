@@ -172,12 +172,12 @@ mod tests {
         let (radius, rate, dt) = (0.5, 0.6, 1e-3);
         let reference = |s: f64| PointReference {
             position: (
-                radius * libm::sin(rate * s),
-                radius - radius * libm::cos(rate * s),
+                radius * crate::trig::sin(rate * s),
+                radius - radius * crate::trig::cos(rate * s),
             ),
             velocity: (
-                radius * rate * libm::cos(rate * s),
-                radius * rate * libm::sin(rate * s),
+                radius * rate * crate::trig::cos(rate * s),
+                radius * rate * crate::trig::sin(rate * s),
             ),
         };
         let point = |b: &Pose2| b.transform_point((d.offset, 0.0));
@@ -187,7 +187,7 @@ mod tests {
             let s = k as f64 * dt;
             let r = reference(s);
             let p = point(&body);
-            let e = libm::hypot(r.position.0 - p.0, r.position.1 - p.1);
+            let e = crate::se2::norm(r.position.0 - p.0, r.position.1 - p.1);
             if s < 2.0 {
                 // Off the circle's start: V only falls (the reference moves, hence the slack).
                 assert!(e <= last_v + 1e-4, "error grew at {s}: {e} > {last_v}");

@@ -19,8 +19,8 @@ impl Wheel {
         Wheel {
             x,
             y,
-            ux: libm::cos(angle),
-            uy: libm::sin(angle),
+            ux: crate::trig::cos(angle),
+            uy: crate::trig::sin(angle),
         }
     }
 

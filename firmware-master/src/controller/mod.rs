@@ -233,7 +233,7 @@ impl Controller {
                 None => Some(self.reject(RejectReason::InvalidTarget)),
             },
             HostToMaster::Track(sample) => {
-                let speed = libm::hypot(
+                let speed = robot_math::se2::norm(
                     sample.velocity_um_s[0] as f64,
                     sample.velocity_um_s[1] as f64,
                 ) * 1e-6;
@@ -450,7 +450,7 @@ impl Controller {
         // Seed 002's A; an omni robot's reference point.
         let point = est.transform_point(self.drive.kinematics.tracked_point());
         let target = r.point.position;
-        let off = libm::hypot(target.0 - point.0, target.1 - point.1);
+        let off = robot_math::se2::norm(target.0 - point.0, target.1 - point.1);
         let turned = r
             .heading
             .map_or(0.0, |h| libm::fabs(wrap_angle(h - est.theta)));
@@ -611,7 +611,7 @@ impl Controller {
         let slave = self.slave_latest;
         BoardInfo {
             protocol_version: PROTOCOL_VERSION,
-            schema_fingerprint: protocol::schema_fingerprint(),
+            schema_fingerprint: protocol::SCHEMA_FINGERPRINT,
             firmware_version: crate::FIRMWARE_VERSION,
             master_uid: self.cfg.uid,
             // A frame armed before the slave's first update carries no settings yet.

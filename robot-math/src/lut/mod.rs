@@ -137,8 +137,8 @@ impl LutOdometry {
         let mut sin_tab = [0u32; 90];
         for i in 0..90 {
             let a = i as f64 * PI / 180.0;
-            cos_tab[i] = libm::round(step_m * libm::cos(a) / RESOLUTION_M) as u32;
-            sin_tab[i] = libm::round(step_m * libm::sin(a) / RESOLUTION_M) as u32;
+            cos_tab[i] = libm::round(step_m * crate::trig::cos(a) / RESOLUTION_M) as u32;
+            sin_tab[i] = libm::round(step_m * crate::trig::sin(a) / RESOLUTION_M) as u32;
         }
         // Heading: steps (with the start's fraction) in 2^-32 units; degree buckets of
         // (1° / β) steps.
@@ -151,7 +151,7 @@ impl LutOdometry {
         let lo = libm::round((k as f64 - 0.5) * width as f64) as i64;
         let deg = k.rem_euclid(360) as u16;
         let half_track = track_m / 2.0;
-        let (s, c) = (libm::sin(start.theta), libm::cos(start.theta));
+        let (s, c) = (crate::trig::sin(start.theta), crate::trig::cos(start.theta));
         // The right wheel sits at (0, −L/2) in the body frame.
         let rx = start.x + half_track * s;
         let ry = start.y - half_track * c;
@@ -290,7 +290,7 @@ impl LutOdometry {
     pub fn pose(&self) -> Pose2 {
         let theta = self.hq as f64 / STEP_Q as f64 * self.beta;
         let (rx, ry) = self.right_wheel();
-        let (s, c) = (libm::sin(theta), libm::cos(theta));
+        let (s, c) = (crate::trig::sin(theta), crate::trig::cos(theta));
         Pose2::new(rx - self.half_track * s, ry + self.half_track * c, theta)
     }
 }

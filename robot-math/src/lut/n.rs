@@ -92,7 +92,7 @@ impl LutN {
             let (dx, dy) = (p[0][j] * metres_per_count[j], p[1][j] * metres_per_count[j]);
             for (d, e) in t.iter_mut().enumerate() {
                 let a = d as f64 * PI / 180.0;
-                let (s, c) = (libm::sin(a), libm::cos(a));
+                let (s, c) = (crate::trig::sin(a), crate::trig::cos(a));
                 *e = (
                     libm::round((c * dx - s * dy) / RESOLUTION_M) as i32,
                     libm::round((s * dx + c * dy) / RESOLUTION_M) as i32,
@@ -175,7 +175,11 @@ mod tests {
         let w: [Wheel; 3] = core::array::from_fn(|i| {
             let a = i as f64 * 2.0 * PI / 3.0;
             let r = 0.2 / libm::sqrt(3.0);
-            Wheel::at(r * libm::cos(a), r * libm::sin(a), a + PI / 2.0 + PI / 4.0)
+            Wheel::at(
+                r * crate::trig::cos(a),
+                r * crate::trig::sin(a),
+                a + PI / 2.0 + PI / 4.0,
+            )
         });
         WheelSolver::new(&w).unwrap()
     }
