@@ -6,6 +6,7 @@ use protocol::serial::{DriveGeometry, DriveKind};
 use robot_math::drive::DriveKinematics;
 use robot_math::offset_diff::OffsetDiff;
 use robot_math::omni3::Omni3;
+use robot_math::pid::PidGains;
 use robot_math::tracking::TrackingGains;
 
 /// Everything the controller needs to know about the driven platform.
@@ -15,10 +16,15 @@ pub struct DriveSetup {
     /// Wheel speed at 100 % duty, m/s.
     pub speed_at_full_duty: f64,
     pub gains: TrackingGains,
+    /// Each motor's speed loop (its feed-forward is `1 / speed_at_full_duty`).
+    pub speed_pid: PidGains,
+    /// Rim travel per motor-encoder count, m; `None`: no motor encoders, open loop.
+    pub metres_per_motor_count: Option<f64>,
 }
 
 const UM: f64 = 1e-6;
 const MILLI: f64 = 1e-3;
+const MICRO: f64 = 1e-6;
 
 impl DriveSetup {
     /// `None` for a geometry no controller can drive (see `RejectReason::InvalidDrive`).
@@ -48,27 +54,49 @@ impl DriveSetup {
             diff_lateral: g.diff_lateral_milli as f64 * MILLI,
         };
         let speed_at_full_duty = g.speed_at_full_duty_um_s as f64 * UM;
-        (gains.valid() && speed_at_full_duty > 0.0).then_some(DriveSetup {
+        if !(gains.valid() && speed_at_full_duty > 0.0) {
+            return None;
+        }
+        let speed_pid = PidGains {
+            kp: g.speed_kp_micro as f64 * MICRO,
+            ki: g.speed_ki_micro as f64 * MICRO,
+            kd: g.speed_kd_micro as f64 * MICRO,
+            ff: 1.0 / speed_at_full_duty,
+        };
+        let metres_per_motor_count =
+            (g.motor_nm_per_count > 0).then_some(g.motor_nm_per_count as f64 * 1e-9);
+        Some(DriveSetup {
             kinematics,
             speed_at_full_duty,
             gains,
+            speed_pid,
+            metres_per_motor_count,
         })
     }
 }
 
-/// Seed 004's robot: seed 003's three omni wheels, d = 0.22 m, 1 m/s at full duty; seed 002's
+/// Seed 004's robot: seed 003's three omni wheels, d = 0.22 m, v_max 1 m/s, its motors; seed 002's
 /// law with our gains (README, "Tracking (seed 002)").
 pub const SEED_004_DRIVE: DriveGeometry = DriveGeometry {
     kind: DriveKind::Omni3 { d_um: 220_000 },
     v_max_um_s: 1_000_000,
-    speed_at_full_duty_um_s: 1_000_000,
+    // robot_math::motor::DcMotor::SEED_004.steady_speed(1.0) (tested in host-bench).
+    speed_at_full_duty_um_s: 1_174_886,
     k_forward_milli: 8_000,
     k_lateral_milli: 8_000,
     ff_forward_milli: 1_000,
     ff_lateral_milli: 1_000,
     diff_forward_milli: 200,
     diff_lateral_milli: 200,
+    motor_nm_per_count: SEED_004_MOTOR_NM_PER_COUNT,
+    speed_kp_micro: 1_000_000,
+    speed_ki_micro: 8_000_000,
+    speed_kd_micro: 0,
 };
+
+/// Seed 004's drive motors (robots/seed004.toml `[motor]`): 48 counts per motor turn (x4) ×
+/// 30:1 on a 60 mm wheel, π·60 mm / 1440.
+pub const SEED_004_MOTOR_NM_PER_COUNT: u32 = 130_900;
 
 #[cfg(test)]
 mod tests {

@@ -23,10 +23,11 @@ mod firmware {
         serial_rx: board::SerialRx,
         serial_tx: board::SerialTx,
         motors: board::Motors,
+        encoders: board::Encoders,
         shared: &'static MasterShared,
         config: MasterConfig,
     ) -> ! {
-        firmware_master::run(bus, serial_rx, serial_tx, motors, shared, &config).await
+        firmware_master::run(bus, serial_rx, serial_tx, motors, encoders, shared, &config).await
     }
 
     #[embassy_executor::main]
@@ -56,6 +57,7 @@ mod firmware {
             board.serial_rx,
             board.serial_tx,
             board.motors,
+            board.encoders,
             shared,
             config
         )));

@@ -33,6 +33,13 @@ pub trait SlaveBus {
     ) -> Result<(), SpiMasterError>;
 }
 
+/// The drive motors' encoders (quadrature, on the motor shafts).
+pub trait MotorEncoders {
+    /// Each motor's count now, free-running: a 16-bit counter that wraps (the controller only
+    /// takes differences over one control period, far under 32 768 counts).
+    fn counts(&mut self) -> [u16; DRIVE_WHEELS];
+}
+
 /// The three motor drivers (PWM magnitude + direction pin each).
 pub trait MotorDrivers {
     /// Signed duty per wheel in per mille (-1000..=1000); the sign picks the direction pin.

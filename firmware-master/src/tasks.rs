@@ -8,7 +8,7 @@ use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
 use protocol::spi::{self, SlaveFrame, SPI_FRAME_LEN};
 
 use crate::controller::{Controller, Drive};
-use crate::ports::{MotorDrivers, SlaveBus};
+use crate::ports::{MotorDrivers, MotorEncoders, SlaveBus};
 use crate::{MasterConfig, MasterShared};
 
 /// Run the master firmware forever.
@@ -17,6 +17,7 @@ pub async fn run(
     serial_rx: impl Read,
     serial_tx: impl Write,
     mut motors: impl MotorDrivers,
+    encoders: impl MotorEncoders,
     shared: &MasterShared,
     config: &MasterConfig,
 ) -> ! {
@@ -34,7 +35,7 @@ pub async fn run(
         host_rx_task(serial_rx, shared),
         host_tx_task(serial_tx, shared, config),
         slave_poll_task(bus, shared, config),
-        control_task(motors, shared, config),
+        control_task(motors, encoders, shared, config),
     )
     .await
     .0
@@ -142,16 +143,22 @@ async fn slave_poll_task(
     }
 }
 
-/// Fixed-rate control: decide, then drive the motors.
+/// Fixed-rate control: read the motor encoders, decide, then drive the motors.
 async fn control_task(
     mut motors: impl MotorDrivers,
+    mut encoders: impl MotorEncoders,
     shared: &MasterShared,
     config: &MasterConfig,
 ) -> ! {
     let mut ticker = Ticker::every(Duration::from_micros(config.control_period_us as u64));
     loop {
         ticker.next().await;
-        match shared.with(|c| c.control(Instant::now())) {
+        let counts = encoders.counts();
+        let now = Instant::now();
+        match shared.with(|c| {
+            c.on_motor_counts(now, counts);
+            c.control(now)
+        }) {
             Some(Drive::Duty(d)) => motors.set_duty(d),
             _ => motors.stop(),
         }

@@ -30,7 +30,7 @@ pub use bytes::Bytes;
 pub use units::{metres_to_um, BinaryAngle, Point, Pose};
 
 /// Version of the wire protocol described by this crate. Bumped on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 3;
+pub const PROTOCOL_VERSION: u16 = 4;
 
 /// [`schema_fingerprint`] of this crate, as a constant: what the firmware reports.
 ///
@@ -38,7 +38,7 @@ pub const PROTOCOL_VERSION: u16 = 3;
 /// reads cost ~5 KB of flash for one number that only changes when the code does. So the
 /// boards send this constant and the golden test (`fingerprint_is_pinned`) proves it equals
 /// the computed value; a message change that forgets to update it fails that test.
-pub const SCHEMA_FINGERPRINT: u32 = 0xd227_f65c;
+pub const SCHEMA_FINGERPRINT: u32 = 0xb35f_83d1;
 
 /// A CRC-32 over the postcard schemas of every message type in this crate.
 ///

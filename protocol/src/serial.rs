@@ -99,6 +99,14 @@ pub struct DriveGeometry {
     pub ff_lateral_milli: i32,
     pub diff_forward_milli: i32,
     pub diff_lateral_milli: i32,
+    /// The drive motors' encoders: rim travel per count, nanometres (0: no motor encoders,
+    /// the duty is the feed-forward alone, open loop).
+    pub motor_nm_per_count: u32,
+    /// The per-motor speed PID, millionths of a duty (full = 1) per unit: `kp` per m/s, `ki`
+    /// per m, `kd` per m/s².
+    pub speed_kp_micro: u32,
+    pub speed_ki_micro: u32,
+    pub speed_kd_micro: u32,
 }
 
 /// What the master says about itself and its slave at the handshake.

@@ -21,7 +21,7 @@ fn serial_hex<T: serde::Serialize>(msg: &T) -> String {
 #[test]
 fn hello_frame_bytes() {
     // postcard: variant 0, u16 2 as varint -> 00 02; then CRC-32 LE; COBS; delimiter.
-    assert_eq!(PROTOCOL_VERSION, 3, "a new version needs new golden bytes");
+    assert_eq!(PROTOCOL_VERSION, 4, "a new version needs new golden bytes");
     assert_eq!(
         serial_hex(&HostToMaster::Hello {
             protocol_version: PROTOCOL_VERSION
@@ -108,6 +108,10 @@ fn track_and_set_drive_frame_bytes() {
         ff_lateral_milli: 1_000,
         diff_forward_milli: 200,
         diff_lateral_milli: 200,
+        motor_nm_per_count: 94_248,
+        speed_kp_micro: 1_000_000,
+        speed_ki_micro: 8_000_000,
+        speed_kd_micro: 5_000,
     });
     assert_eq!(serial_hex(&drive), GOLDEN_SET_DRIVE);
 }
@@ -199,16 +203,16 @@ fn fingerprint_is_pinned() {
     assert_eq!(protocol::SCHEMA_FINGERPRINT, protocol::schema_fingerprint());
 }
 
-const GOLDEN_HELLO: &str = "0106034543d0d800";
+const GOLDEN_HELLO: &str = "010604e6d6b44600";
 const GOLDEN_SET_SOURCE: &str = "1407060302ac02d00f9f1f8080808008f6a586b400";
 const GOLDEN_HELLO_REPLY: &str =
-    "010703f8acd191011802010102030405060708090a0b0c01effdb6f50d01e8070880a0386e636c0c00";
+    "010704f8acd191011802010102030405060708090a0b0c01effdb6f50d01e8070880a038ecd4e3f300";
 const GOLDEN_TRACK: &str = "0b0ac0843d9fc21e80ea300e8080808004d7dfbf0103f853e100";
 const GOLDEN_SET_DRIVE: &str =
-    "220b01e0a712dfa712e0a71280ea3080ea30c03ec03ed00fd00f900390035ffa6a5600";
+    "2e0b01e0a712dfa712e0a71280ea3080ea30c03ec03ed00fd00f90039003a8e005c0843d80a4e8038827682bf55c00";
 const GOLDEN_FOLLOW: &str = "020213809bee02c096b102809bee02b0ae15c0cf24050aeaac0a00";
 const GOLDEN_TELEMETRY: &str =
     "0f01c0843dd8fc3c1744808080800401010bc8018f03d8040203060501010101060171ce365200";
 const GOLDEN_SLAVE_FRAME: &str = "07c0c407e0c8070201ffffffff0f010200008486880803d00fac02f0a20409000a0b078de0fbd70c00000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000004d28";
 const GOLDEN_MASTER_FRAME: &str = "090301000000800203102030f0a2040000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000003700";
-const GOLDEN_FINGERPRINT: &str = "d227f65c";
+const GOLDEN_FINGERPRINT: &str = "b35f83d1";

@@ -1,10 +1,13 @@
 //! STM32F103C8 ("blue pill") board layer of the motion controller: clocks, pins, and the
 //! embassy-stm32 implementations of the ports in `firmware_master::ports` plus the serial link.
 //!
-//! Pin map (see docs/pinmap.md): PA9/PA10 USART1 to the host with DMA1 CH4 (TX) / CH5 (RX),
-//! PA4 chip select + PA5..PA7 SPI1 master with DMA1 CH2 (RX) / CH3 (TX), PA0..PA2 TIM2 PWM,
-//! PB12..PB14 direction, PB15 driver enable, PC13 LED. TIM4 is embassy's time driver.
+//! Pin map (see docs/pinmap.md): PB6/PB7 USART1 (remapped) to the host with DMA1 CH4 (TX) / CH5
+//! (RX), PA4 chip select + PA5..PA7 SPI1 master with DMA1 CH2 (RX) / CH3 (TX), PA0..PA2 TIM2
+//! PWM, PB12..PB14 direction, PB15 driver enable, motor encoders on TIM3 (PB4/PB5), TIM1
+//! (PA8/PA9) and EXTI 8/9 (PB8/PB9), PC13 LED. TIM4 is embassy's time driver. JTAG is off
+//! (PB4 is a timer pin); SWD on PA13/PA14 stays.
 
+mod motor_encoders;
 mod motors;
 mod serial;
 mod slave_link;
@@ -16,6 +19,7 @@ use firmware_master::MasterConfig;
 // `bluepill`'s (no `panic-probe`: its `print-defmt` pulls in `core::fmt`).
 use defmt_rtt as _;
 
+pub use motor_encoders::Encoders;
 pub use motors::Motors;
 pub use serial::{SerialRx, SerialTx};
 pub use slave_link::SlaveLink;
@@ -34,6 +38,7 @@ pub struct Board {
     pub serial_rx: SerialRx,
     pub serial_tx: SerialTx,
     pub motors: Motors,
+    pub encoders: Encoders,
     pub led: Output<'static>,
 }
 
@@ -49,18 +54,22 @@ pub fn unique_id() -> [u8; 12] {
 /// Bring up the clocks and build every port for `config` (its `baud` sets USART1). Called
 /// once, from `main`.
 pub fn init(config: &MasterConfig) -> Board {
-    let p = embassy_stm32::init(bluepill::clock_config());
+    let mut chip = bluepill::clock_config();
+    // JTAG off, SWD kept: frees PB4 for motor 1's encoder.
+    chip.swj = embassy_stm32::gpio::SwjCfg::SwdOnly;
+    let p = embassy_stm32::init(chip);
 
     // Motors first: the driver enable pin goes low (drivers off) as early as possible.
     let motors = Motors::new(p.TIM2, p.PA0, p.PA1, p.PA2, p.PB12, p.PB13, p.PB14, p.PB15);
     let slave = SlaveLink::new(
         p.SPI1, p.PA4, p.PA5, p.PA6, p.PA7, p.DMA1_CH3, p.DMA1_CH2, Irqs,
     );
+    let encoders = Encoders::new(p.TIM3, p.PB4, p.PB5, p.TIM1, p.PA8, p.PA9, p.PB8, p.PB9);
     let (serial_tx, serial_rx) = serial::new(
         config.baud,
         p.USART1,
-        p.PA9,
-        p.PA10,
+        p.PB6,
+        p.PB7,
         p.DMA1_CH4,
         p.DMA1_CH5,
         Irqs,
@@ -72,6 +81,7 @@ pub fn init(config: &MasterConfig) -> Board {
         serial_rx,
         serial_tx,
         motors,
+        encoders,
         led,
     }
 }

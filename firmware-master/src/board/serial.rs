@@ -9,7 +9,7 @@
 
 use embassy_stm32::gpio::Pull;
 use embassy_stm32::mode::Async;
-use embassy_stm32::peripherals::{DMA1_CH4, DMA1_CH5, PA10, PA9, USART1};
+use embassy_stm32::peripherals::{DMA1_CH4, DMA1_CH5, PB6, PB7, USART1};
 use embassy_stm32::usart::{Config, RingBufferedUartRx, Uart, UartTx};
 use embassy_stm32::Peri;
 
@@ -25,13 +25,13 @@ pub type SerialRx = RingBufferedUartRx<'static>;
 /// (still ~5 ms at 1 Mbaud).
 const RX_BUFFER_LEN: usize = 512;
 
-/// USART1 on PA9 (TX) / PA10 (RX) at `baud`, 8N1, DMA1 CH4 (TX) / CH5 (RX); reception starts
+/// USART1 on PB6 (TX) / PB7 (RX) (its AFIO remap: PA9 is motor 2's encoder) at `baud`, 8N1, DMA1 CH4 (TX) / CH5 (RX); reception starts
 /// at once. `baud` is `MasterConfig::baud`: the one place the link's rate is chosen.
 pub fn new(
     baud: u32,
     usart: Peri<'static, USART1>,
-    tx: Peri<'static, PA9>,
-    rx: Peri<'static, PA10>,
+    tx: Peri<'static, PB6>,
+    rx: Peri<'static, PB7>,
     tx_dma: Peri<'static, DMA1_CH4>,
     rx_dma: Peri<'static, DMA1_CH5>,
     irqs: Irqs,
@@ -40,7 +40,7 @@ pub fn new(
     let mut config = Config::default();
     config.baudrate = baud;
     // With the USB-serial adapter unplugged, RX would float and produce framing errors and
-    // noise bytes; the pull-up holds it at the idle (mark) level. PA10 is 5 V tolerant.
+    // noise bytes; the pull-up holds it at the idle (mark) level. PB7 is 5 V tolerant.
     config.rx_pull = Pull::Up;
 
     // USART1 runs from APB2 (72 MHz): its divider reaches about 1.1 kbaud to 4.5 Mbaud.

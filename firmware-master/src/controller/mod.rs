@@ -13,6 +13,7 @@ use crate::drive_setup::DriveSetup;
 use crate::relay::Relay;
 use protocol::serial::TrackPoint;
 use protocol::{Pose, PROTOCOL_VERSION};
+use robot_math::pid::SpeedPid;
 use robot_math::pursuit::{euler_step, field_to_body, pursue, SegmentTarget};
 use robot_math::se2::wrap_angle;
 use robot_math::tracking::{PointReference, PointTracker};
@@ -144,6 +145,13 @@ pub struct Controller {
     /// When the previous SPI transaction ended: the slave armed the next frame right then.
     prev_exchange_end: Option<Instant>,
     last_fresh_slave: Option<Instant>,
+    /// The drive motors' encoders: the last counts read and when, and the rim speeds they
+    /// showed since the reading before (m/s).
+    motor_counts: Option<([u16; 3], Instant)>,
+    motor_speeds: Option<[f64; 3]>,
+    /// One speed loop per motor, and when they last ran.
+    speed_pids: [SpeedPid; 3],
+    last_pid_at: Option<Instant>,
     // Outputs.
     cmd_twist: Twist,
     wheel_cmd: [f64; 3],
@@ -190,6 +198,10 @@ impl Controller {
             slave: None,
             prev_exchange_end: None,
             last_fresh_slave: None,
+            motor_counts: None,
+            motor_speeds: None,
+            speed_pids: [SpeedPid::new(drive.speed_pid); 3],
+            last_pid_at: None,
             cmd_twist: Twist::default(),
             wheel_cmd: [0.0; 3],
             duty: [0; 3],
@@ -253,6 +265,7 @@ impl Controller {
                     self.stop_following(0);
                     self.drive = drive;
                     self.tracker = PointTracker::new(drive.gains);
+                    self.speed_pids = [SpeedPid::new(drive.speed_pid); 3];
                     None
                 }
                 None => Some(self.reject(RejectReason::InvalidDrive)),
@@ -427,7 +440,24 @@ impl Controller {
         Some(Pose2::new(x, y, theta).integrate(self.cmd_twist, dt))
     }
 
-    /// One control step: watchdogs, pursuit, inverse kinematics, duties.
+    /// The drive motors' encoder counts, read just before a control step (free-running 16-bit
+    /// counters: only differences matter, and they wrap).
+    pub fn on_motor_counts(&mut self, now: Instant, counts: [u16; 3]) {
+        let Some(per_count) = self.drive.metres_per_motor_count else {
+            return;
+        };
+        if let Some((before, at)) = self.motor_counts {
+            let dt = now.saturating_duration_since(at).as_micros() as f64 * 1e-6;
+            self.motor_speeds = (dt > 0.0).then(|| {
+                core::array::from_fn(|i| {
+                    counts[i].wrapping_sub(before[i]) as i16 as f64 * per_count / dt
+                })
+            });
+        }
+        self.motor_counts = Some((counts, now));
+    }
+
+    /// One control step: watchdogs, pursuit, inverse kinematics, speed loops, duties.
     pub fn control(&mut self, now: Instant) -> Drive {
         let slave_ok = us_since(now, self.last_fresh_slave) <= self.cfg.slave_timeout_us as u64;
         if slave_ok {
@@ -498,11 +528,19 @@ impl Controller {
             .sent(self.drive.kinematics.point_velocity(twist));
         self.cmd_twist = twist;
         self.wheel_cmd = wheels;
-        let full = self.drive.speed_at_full_duty;
-        self.duty = wheels.map(|w| {
-            let d = libm::round(w / full * 1000.0);
-            d.clamp(-1000.0, 1000.0) as i16
+        let dt = self.last_pid_at.map_or(0.0, |t| {
+            now.saturating_duration_since(t).as_micros() as f64 * 1e-6
         });
+        self.last_pid_at = Some(now);
+        let duty: [f64; 3] = match self.motor_speeds {
+            // Closed loop on the motor encoders.
+            Some(measured) if self.drive.metres_per_motor_count.is_some() => {
+                core::array::from_fn(|i| self.speed_pids[i].update(wheels[i], measured[i], dt))
+            }
+            // No motor encoders (or no reading yet): the motor constant alone.
+            _ => wheels.map(|w| (w * self.drive.speed_pid.ff).clamp(-1.0, 1.0)),
+        };
+        self.duty = duty.map(|d| libm::round(d * 1000.0) as i16);
         self.status |= status::MOTORS_ON;
         Drive::Duty(self.duty)
     }
@@ -564,6 +602,9 @@ impl Controller {
 
     fn halt(&mut self) -> Drive {
         self.last_point = None;
+        // Motors off: nothing for the speed loops to carry into the next start.
+        self.speed_pids.iter_mut().for_each(SpeedPid::reset);
+        self.last_pid_at = None;
         self.tracker.reset();
         self.cmd_twist = Twist::default();
         self.wheel_cmd = [0.0; 3];

@@ -5,9 +5,10 @@
 //! with no spin the three wheel speeds sum to zero, so at most two reach v_max. Spinning lets
 //! all three reach v_max (seed 003's table 1: each wheel ±v_max, not all alike): the body then
 //! translates at 4·v_max/3 while spinning at v_max/(3d), so in the field its reference point runs
-//! round a circle of radius 4d. Measured here means driven flat out on the plant (the drive
-//! model of `emulate`: each wheel follows its duty with a first-order lag) and timed once the
-//! motors have settled, from the ground truth.
+//! round a circle of radius 4d. Measured here means driven flat out on the plant of `emulate`
+//! (seed 004's DC gear motors with friction and dead band), each wheel held at its limit by the
+//! master's speed loop (`robot_math::pid::SpeedPid`, its gains and 100 Hz, fed by the motor
+//! encoders' counts as on the board), and timed from the ground truth once settled.
 
 use anyhow::{Context, Result};
 use robot_math::omni3::Omni3;
@@ -17,16 +18,19 @@ use robot_math::{Pose2, Twist};
 use serde::Serialize;
 
 use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
+use firmware_master::drive_setup::{DriveSetup, SEED_004_DRIVE};
+use robot_math::motor::DcMotor;
+use robot_math::pid::SpeedPid;
 
-/// The master's motor time constant in `emulate`, seconds.
-const MOTOR_TAU_S: f64 = 0.05;
-/// Settling before a measurement (20 time constants: e^-20 of the step left), and the
-/// measuring window, seconds.
-const SETTLE_S: f64 = 1.0;
+/// Settling before a measurement (the speed loops' integrators included), and the measuring
+/// window, seconds.
+const SETTLE_S: f64 = 2.0;
 const WINDOW_S: f64 = 1.0;
-/// The plant's longest integration step, seconds: the motors' lag is integrated exactly and
-/// the pose by RK4, so a millisecond is far inside what a speed needs.
+/// The plant's longest integration step, seconds: the motors' response is integrated exactly
+/// and the pose by RK4, so a millisecond is far inside what a speed needs.
 const STEP_S: f64 = 1e-3;
+/// The master's control period, seconds (its speed loops run at it).
+const CONTROL_S: f64 = 0.01;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Envelope {
@@ -144,11 +148,11 @@ pub fn run(wheel_distance_m: f64, v_max_m_s: f64) -> Result<Envelope> {
 /// The simulated robot with its wheels commanded to `wheels` (m/s) from rest: once settled,
 /// the speed of its reference point along its path (m/s) and its spin (rad/s).
 fn drive_flat_out(omni: &Omni3, wheels: [f64; 3]) -> Result<(f64, f64)> {
+    let drive = DriveSetup::from_geometry(&SEED_004_DRIVE).context("seed 004's drive")?;
     let cfg = PlantConfig {
         drive: robot_math::drive::DriveKinematics::Omni3(*omni),
-        // Full duty is v_max: "flat out" is the duty limit, as on the board.
-        speed_at_full_duty: omni.v_max,
-        motor_tau: MOTOR_TAU_S,
+        motor: DcMotor::SEED_004,
+        motor_metres_per_count: drive.metres_per_motor_count,
         // Not read here: two body-fixed wheels with metre-long counts, so the plant keeps
         // next to no encoder edges.
         sensors: MeasuringSensors::Wheels {
@@ -156,16 +160,36 @@ fn drive_flat_out(omni: &Omni3, wheels: [f64; 3]) -> Result<(f64, f64)> {
             metres_per_count: [1.0; 2],
         },
     };
+    let per_count = drive
+        .metres_per_motor_count
+        .context("seed 004's motors have encoders")?;
     let mut plant = Plant::new(cfg, Pose2::default(), 0.0, [0.0; 2]);
-    let duty = wheels.map(|w| (w / omni.v_max * 1000.0).round().clamp(-1000.0, 1000.0) as i16);
-    plant.set_duty(duty);
-    plant.advance(SETTLE_S, STEP_S);
+    let mut pids = [SpeedPid::new(drive.speed_pid); 3];
+    let mut counts = plant.motor_counts();
+    // One control period: the speed each encoder showed over the last, then the loops' duty.
+    let mut control = |plant: &mut Plant, first: bool| {
+        let now = plant.motor_counts();
+        let measured: [f64; 3] = core::array::from_fn(|i| {
+            now[i].wrapping_sub(counts[i]) as i16 as f64 * per_count / CONTROL_S
+        });
+        counts = now;
+        let dt = if first { 0.0 } else { CONTROL_S };
+        let duty: [i16; 3] = core::array::from_fn(|i| {
+            (pids[i].update(wheels[i], measured[i], dt) * 1000.0).round() as i16
+        });
+        plant.set_duty(duty);
+        plant.advance(CONTROL_S, STEP_S);
+    };
+    control(&mut plant, true);
+    for _ in 1..(SETTLE_S / CONTROL_S).round() as usize {
+        control(&mut plant, false);
+    }
     let (s0, th0) = (plant.path_length(), plant.body().theta);
     // In short steps, so the heading's change is unwrapped however fast it spins.
     let mut turned = 0.0;
     let mut th = th0;
-    for _ in 0..100 {
-        plant.advance(WINDOW_S / 100.0, STEP_S);
+    for _ in 0..(WINDOW_S / CONTROL_S).round() as usize {
+        control(&mut plant, false);
         plant.take_edges();
         let now = plant.body().theta;
         turned += wrap_angle(now - th);

@@ -132,8 +132,10 @@ mod tests {
     fn the_paper_s_law_overshoots_a_stopped_target_by_up_to_its_step_and_ours_holds() {
         let rows = run(&[0.0, 0.2, 1.0], 10.0).unwrap();
         let [ours, short, long] = [&rows[0], &rows[1], &rows[2]];
-        // Ours holds within its arrival band; the Euler steps of 0.6 m/s x tau do not settle.
-        assert!(ours.arrived && ours.hold_max_m < 2e-3, "{ours:?}");
+        // Ours holds within its release band (the motors coast a little past the 1 mm arrival
+        // once cut); the Euler steps of 0.6 m/s x tau do not settle.
+        let release = firmware_master::MasterConfig::DEFAULT.hold_release;
+        assert!(ours.arrived && ours.hold_max_m < release, "{ours:?}");
         assert!(
             short.hold_max_m > 0.02 && short.hold_max_m <= 0.6 * 0.2 + 0.01,
             "{short:?}"
@@ -149,7 +151,7 @@ mod tests {
         );
         // While the target moves, far from it, every period follows the same smooth curve.
         for r in &rows {
-            assert!(r.jitter < 0.35, "{r:?}");
+            assert!(r.jitter < 0.45, "{r:?}");
             assert!(
                 (r.tracking_rms_m - ours.tracking_rms_m).abs() < 0.05,
                 "{r:?}"

@@ -12,8 +12,9 @@ use super::robot::Robot;
 impl Robot {
     /// The master's drive for this robot: seed 003's three omni wheels (any d), or a
     /// differential axle through the reference point with a `[tracked_point]` ahead of it
-    /// (seed 002). Every wheel's `v_max_m_s` must be the same; full duty is taken to give
-    /// `v_max`. The tracking gains are the power-on defaults (a scenario may change them).
+    /// (seed 002). Every wheel's `v_max_m_s` must be the same; full duty gives the `[motor]`'s
+    /// steady speed, and its shaft encoders feed the speed loops. The gains are the power-on
+    /// defaults (a scenario may change the tracking gains).
     pub fn drive_geometry(&self) -> Result<DriveGeometry> {
         let name = &self.name;
         let wheels = &self.drive_wheels;
@@ -64,7 +65,8 @@ impl Robot {
                 let (left, right) = (wheels[0].wheel.y, wheels[1].wheel.y);
                 if left <= right {
                     bail!(
-                        "robot {name}: list the left drive wheel (larger y_m) first: motor 1 is                          the left, motor 2 the right"
+                        "robot {name}: list the left drive wheel (larger y_m) first: motor 1 is \
+                         the left, motor 2 the right"
                     );
                 }
                 DriveKind::OffsetDiff {
@@ -75,10 +77,26 @@ impl Robot {
             }
             n => bail!("robot {name}: the master drives 3 omni wheels or 2 on an axle, not {n}"),
         };
+        let Some(motor) = self.motor else {
+            bail!(
+                "robot {name} has no [motor]: the master's feed-forward and the emulator's \
+                 plant need its drive motors"
+            );
+        };
+        let full = motor.model.steady_speed(1.0);
+        if full < v_max {
+            bail!(
+                "robot {name}: its motors reach {full:.3} m/s at full duty, under v_max_m_s \
+                 {v_max} (the speed loops could never hold it)"
+            );
+        }
         let g = DriveGeometry {
             kind,
             v_max_um_s: um(v_max) as u32,
-            speed_at_full_duty_um_s: um(v_max) as u32,
+            speed_at_full_duty_um_s: um(full) as u32,
+            motor_nm_per_count: motor
+                .metres_per_count()
+                .map_or(0, |m| (m * 1e9).round() as u32),
             ..SEED_004_DRIVE
         };
         if DriveSetup::from_geometry(&g).is_none() {

@@ -9,6 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Result};
+use robot_math::motor::DcMotor;
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -133,18 +134,21 @@ impl TomlFile<'_> {
         let duration = self.positive(&raw.duration_s, "duration_s")?;
         // The robot's drive (for the master) and sensors (for the slave); without a robot
         // file, the boards' power-on robot.
-        let (robot, mut drive, layout) = match &raw.robot {
+        let (robot, mut drive, layout, motor) = match &raw.robot {
             Some(r) => {
                 let robot = self.robot(r)?;
                 let here = |e: anyhow::Error| anyhow!(self.at(r.span(), "robot", e.to_string()));
                 let drive = robot.drive_geometry().map_err(here)?;
                 let layout = robot.odometry_layout().map_err(here)?;
-                (robot.name, drive, layout)
+                // drive_geometry() has checked the motor is there.
+                let motor = robot.motor.map(|m| m.model).unwrap_or(DcMotor::SEED_004);
+                (robot.name, drive, layout, motor)
             }
             None => (
                 POWER_ON_ROBOT.to_string(),
                 firmware_master::drive_setup::SEED_004_DRIVE,
                 robot_math::odometry::Layout::SEED_004,
+                DcMotor::SEED_004,
             ),
         };
         let has_carriage = layout.carriage_geometry().is_some();
@@ -258,6 +262,7 @@ impl TomlFile<'_> {
             description: raw.description.trim().to_string(),
             robot,
             drive,
+            motor,
             layout,
             start,
             start_swivel,

@@ -1,5 +1,6 @@
-//! The simulated robot: seed 004's platform. Three driven omni wheels (seed 003 layout) with a
-//! first-order motor response, and the slave's two measuring encoders: on seed 004's trailing
+//! The simulated robot: seed 004's platform. Three driven omni wheels (seed 003 layout), each
+//! on a DC gear motor (`robot_math::motor::DcMotor`: back-EMF, friction, the driver's dead
+//! band) with an encoder on its shaft, and the slave's two measuring encoders: on seed 004's trailing
 //! carriage (two wheels and a swivel angle), or on two wheels fixed to the body (a robot
 //! file's differential axle). Either way they produce exactly the counts and codes the real
 //! encoders would.
@@ -10,6 +11,7 @@
 
 use robot_math::carriage::CarriageGeometry;
 use robot_math::drive::DriveKinematics;
+use robot_math::motor::DcMotor;
 use robot_math::odometry::{AbsLayout, Layout};
 use robot_math::se2::wrap_angle;
 use robot_math::sensors::binary_to_gray;
@@ -93,10 +95,10 @@ impl MeasuringSensors {
 pub struct PlantConfig {
     /// Drive wheels (their `v_max` is unused by the plant: physics does not saturate).
     pub drive: DriveKinematics,
-    /// Wheel speed at full duty, m/s.
-    pub speed_at_full_duty: f64,
-    /// Motor time constant, seconds (first-order response to a duty step).
-    pub motor_tau: f64,
+    /// Every drive wheel's motor (the same model on each).
+    pub motor: DcMotor,
+    /// Rim travel per count of the motor-shaft encoders, m (None: no motor encoders).
+    pub motor_metres_per_count: Option<f64>,
     pub sensors: MeasuringSensors,
 }
 
@@ -108,6 +110,8 @@ struct State {
     phi: f64,
     /// Rolling distance of each measuring wheel since the start, metres.
     rolled: [f64; 2],
+    /// Rim travel of each drive wheel since the start, metres (its motor encoder's count).
+    driven: [f64; 3],
 }
 
 pub struct Plant {
@@ -140,6 +144,7 @@ impl Plant {
                 body,
                 phi: body.theta + swivel,
                 rolled: [0.0; 2],
+                driven: [0.0; 3],
             },
             wheel_speed: [0.0; 3],
             duty: [0; 3],
@@ -195,6 +200,17 @@ impl Plant {
     pub fn encoder_counts(&self) -> [i64; 2] {
         self.encoder_positions(&self.state)
             .map(|p| p.floor() as i64)
+    }
+
+    /// The motor encoders' counts now, as the master's free-running 16-bit counters show
+    /// them (zero at power-on; all zero without motor encoders).
+    pub fn motor_counts(&self) -> [u16; 3] {
+        let Some(per_count) = self.cfg.motor_metres_per_count else {
+            return [0; 3];
+        };
+        self.state
+            .driven
+            .map(|d| (d / per_count).floor() as i64 as u16)
     }
 
     /// Each encoder's position in counts (fractional), relative to its power-on count.
@@ -255,17 +271,19 @@ impl Plant {
     }
 
     fn step(&mut self, h: f64) {
-        let target = self
-            .duty
-            .map(|d| d as f64 / 1000.0 * self.cfg.speed_at_full_duty);
+        let duty = self.duty.map(|d| d as f64 / 1000.0);
         let w0 = self.wheel_speed;
-        let tau = self.cfg.motor_tau;
-        // Exact first-order response inside the step: w(s) = target + (w0 - target)·e^(-s/τ).
-        let wheels_at = |s: f64| -> [f64; 3] {
-            let decay = (-s / tau).exp();
-            core::array::from_fn(|i| target[i] + (w0[i] - target[i]) * decay)
+        let motor = self.cfg.motor;
+        // The motors' exact response inside the step (the duty is held through it).
+        let wheels_at =
+            |s: f64| -> [f64; 3] { core::array::from_fn(|i| motor.speed_after(w0[i], duty[i], s)) };
+        let f = |s: f64, y: &State| {
+            let wheels = wheels_at(s);
+            State {
+                driven: wheels,
+                ..self.derivative(y, self.cfg.drive.twist(wheels))
+            }
         };
-        let f = |s: f64, y: &State| self.derivative(y, self.cfg.drive.twist(wheels_at(s)));
         let y0 = self.state;
         let k1 = f(0.0, &y0);
         let k2 = f(h / 2.0, &add(&y0, &k1, h / 2.0));
@@ -322,6 +340,7 @@ impl Plant {
                     body: Pose2::new(vx, vy, twist.omega),
                     phi: twist.omega,
                     rolled: wheels.map(|w| w.rolling_speed(twist)),
+                    driven: [0.0; 3],
                 };
             }
         };
@@ -336,6 +355,7 @@ impl Plant {
                 forward - phi_dot * g.wheel_base / 2.0,
                 forward + phi_dot * g.wheel_base / 2.0,
             ],
+            driven: [0.0; 3],
         }
     }
 }
@@ -349,6 +369,7 @@ fn add(y: &State, k: &State, h: f64) -> State {
         ),
         phi: y.phi + h * k.phi,
         rolled: [y.rolled[0] + h * k.rolled[0], y.rolled[1] + h * k.rolled[1]],
+        driven: core::array::from_fn(|i| y.driven[i] + h * k.driven[i]),
     }
 }
 
@@ -365,14 +386,18 @@ mod tests {
     fn cfg() -> PlantConfig {
         PlantConfig {
             drive: DriveKinematics::Omni3(omni()),
-            speed_at_full_duty: 1.0,
-            motor_tau: 0.05,
+            motor: DcMotor::SEED_004.frictionless(),
+            motor_metres_per_count: Some(1e-4),
             sensors: MeasuringSensors::SEED_004,
         }
     }
 
     fn duty_for(_: &Plant, t: Twist) -> [i16; 3] {
-        omni().wheel_speeds(t).map(|w| (w * 1000.0).round() as i16)
+        // Open loop: the motor constant alone (the tests below score the sensors, not speed).
+        let full = DcMotor::SEED_004.frictionless().steady_speed(1.0);
+        omni()
+            .wheel_speeds(t)
+            .map(|w| (w / full * 1000.0).round() as i16)
     }
 
     #[test]
@@ -382,8 +407,9 @@ mod tests {
         let mut p = Plant::new(cfg(), Pose2::default(), 0.01, [0.0; 2]);
         p.set_duty(duty_for(&p, Twist::new(0.0, 0.3, 0.0)));
         p.advance(3.0, 1e-4);
-        assert!((p.swivel() - PI / 2.0).abs() < 1e-3, "{}", p.swivel());
-        assert!(p.body().theta.abs() < 1e-9);
+        // Per-mille duties leave the wheels a hair off a pure translation: milliradians.
+        assert!((p.swivel() - PI / 2.0).abs() < 5e-3, "{}", p.swivel());
+        assert!(p.body().theta.abs() < 1e-2, "{}", p.body().theta);
     }
 
     #[test]

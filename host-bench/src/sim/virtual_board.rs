@@ -24,7 +24,8 @@ use std::time::{Duration as WallDuration, Instant as WallInstant};
 use anyhow::{Context, Result};
 use embassy_time::{Duration, Instant};
 use firmware_master::drive_setup::DriveSetup;
-use firmware_master::{ports::MotorDrivers, MasterConfig, MasterShared};
+use firmware_master::ports::{MotorDrivers, MotorEncoders};
+use firmware_master::{MasterConfig, MasterShared};
 use firmware_slave::{SlaveConfig, SlaveShared};
 use protocol::serial::{self, FrameDecoder, MasterToHost};
 use rand::{Rng, SeedableRng};
@@ -39,6 +40,7 @@ use virtual_time::Simulation;
 
 use super::emulator::hw::*;
 use super::plant::{MeasuringSensors, Plant, PlantConfig};
+use robot_math::motor::DcMotor;
 
 /// Fault knobs of the virtual board (for tests of the host's checks).
 #[derive(Clone, Debug, Default)]
@@ -101,6 +103,12 @@ struct Unconnected;
 impl MotorDrivers for Unconnected {
     fn set_duty(&mut self, _duty: [i16; 3]) {}
     fn stop(&mut self) {}
+}
+
+impl MotorEncoders for Unconnected {
+    fn counts(&mut self) -> [u16; 3] {
+        [0; 3]
+    }
 }
 
 /// How the course steers the body.
@@ -211,8 +219,11 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
     let plant_cfg = PlantConfig {
         drive: DriveKinematics::Omni3(drive),
-        speed_at_full_duty,
-        motor_tau: 0.05,
+        // The course below drives open loop (no speed loops, no motor encoders): without
+        // friction its duties move the robot where it steers. What this board is for is the
+        // slave's sensors, not the motors.
+        motor: DcMotor::SEED_004.frictionless(),
+        motor_metres_per_count: None,
         sensors,
     };
     let plant: SharedPlant = Rc::new(RefCell::new(Plant::new(
@@ -259,6 +270,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
                 line: to_host.clone(),
                 byte_time,
             },
+            Unconnected,
             Unconnected,
             &master_shared,
             &opts.master,
@@ -377,8 +389,8 @@ mod tests {
         let (drive, speed_at_full_duty) = omni_drive(&MasterConfig::DEFAULT).unwrap();
         let cfg = PlantConfig {
             drive: DriveKinematics::Omni3(drive),
-            speed_at_full_duty,
-            motor_tau: 0.05,
+            motor: DcMotor::SEED_004.frictionless(),
+            motor_metres_per_count: None,
             sensors,
         };
         let mut plant = Plant::new(cfg, Pose2::default(), 0.0, [0.3, 0.8]);
@@ -417,10 +429,11 @@ mod tests {
         assert!(corners_passed >= 4, "{corners_passed} corners");
         assert!(plant.path_length() > 2.0, "{}", plant.path_length());
         // Two wheels on an axle see only motion without sideways sliding: had the course slid
-        // the axle, odometry would be off by centimetres.
+        // the axle, odometry would be off by centimetres (a millimetre is the counts' own
+        // quantisation over the 2+ m course).
         let (est, truth) = (odo.pose().to_pose2(), plant.body());
-        assert!(est.distance_to(truth) < 1e-4, "{est:?} vs {truth:?}");
-        assert!(wrap_angle(est.theta - truth.theta).abs() < 1e-4);
+        assert!(est.distance_to(truth) < 1e-3, "{est:?} vs {truth:?}");
+        assert!(wrap_angle(est.theta - truth.theta).abs() < 1e-3);
     }
 
     #[test]

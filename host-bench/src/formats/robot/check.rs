@@ -168,6 +168,11 @@ impl TomlFile<'_> {
             None => None,
         };
 
+        let motor = match &raw.motor {
+            Some(m) => Some(self.check_motor(m)?),
+            None => None,
+        };
+
         Ok(Robot {
             name,
             description: raw.description.trim().to_string(),
@@ -176,6 +181,43 @@ impl TomlFile<'_> {
             carriage,
             drive_wheels,
             tracked_point_x_m,
+            motor,
+        })
+    }
+
+    fn check_motor(&self, m: &Spanned<super::raw::RawMotor>) -> Res<super::Motor> {
+        let r = m.get_ref();
+        let k = |f: &str| format!("motor.{f}");
+        let dead_band = self.non_negative(&r.dead_band, &k("dead_band"))?;
+        if dead_band >= 1.0 {
+            return Err(self.at(
+                r.dead_band.span(),
+                &k("dead_band"),
+                format!("a fraction of full duty, under 1: got {dead_band}"),
+            ));
+        }
+        let model = robot_math::motor::DcMotor {
+            supply_v: self.positive(&r.supply_v, &k("supply_v"))?,
+            resistance_ohm: self.positive(&r.resistance_ohm, &k("resistance_ohm"))?,
+            torque_constant: self
+                .positive(&r.torque_constant_nm_per_a, &k("torque_constant_nm_per_a"))?,
+            gear_ratio: self.positive(&r.gear_ratio, &k("gear_ratio"))?,
+            wheel_radius_m: self.positive(&r.wheel_diameter_m, &k("wheel_diameter_m"))? / 2.0,
+            inertia_kg_m2: self.positive(&r.inertia_kg_m2, &k("inertia_kg_m2"))?,
+            viscous_nm_s: self.non_negative(&r.viscous_nm_s, &k("viscous_nm_s"))?,
+            coulomb_nm: self.non_negative(&r.coulomb_nm, &k("coulomb_nm"))?,
+            dead_band,
+        };
+        if model.steady_speed(1.0) <= 0.0 {
+            return Err(self.at(
+                m.span(),
+                "motor",
+                "at full duty this motor cannot overcome its own friction",
+            ));
+        }
+        Ok(super::Motor {
+            model,
+            encoder_counts_per_motor_rev: *r.encoder_counts_per_motor_rev.get_ref(),
         })
     }
 

@@ -45,6 +45,27 @@ pub struct Robot {
     /// Seed 002's point A: the point a differential drive tracks, this far ahead of the
     /// reference point on body +x (never 0). `None`: the reference point itself.
     pub tracked_point_x_m: Option<f64>,
+    /// The drive wheels' motors (one model for all), which the emulator's plant runs.
+    pub motor: Option<Motor>,
+}
+
+/// `[motor]`: every drive wheel's DC gear motor and the encoder on its shaft.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Motor {
+    pub model: robot_math::motor::DcMotor,
+    /// Counts per motor turn after x4 decoding (0: no motor encoders).
+    pub encoder_counts_per_motor_rev: u32,
+}
+
+impl Motor {
+    /// Rim travel per motor-encoder count, m (None without encoders).
+    pub fn metres_per_count(&self) -> Option<f64> {
+        let m = &self.model;
+        (self.encoder_counts_per_motor_rev > 0).then(|| {
+            2.0 * std::f64::consts::PI * m.wheel_radius_m
+                / (self.encoder_counts_per_motor_rev as f64 * m.gear_ratio)
+        })
+    }
 }
 
 /// An incremental (quadrature) encoder on a measuring wheel.

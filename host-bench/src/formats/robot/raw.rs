@@ -22,6 +22,22 @@ pub(super) struct RawRobot {
     #[serde(default)]
     pub(super) drive_wheels: Vec<Spanned<RawDriveWheel>>,
     pub(super) tracked_point: Option<Spanned<RawTrackedPoint>>,
+    pub(super) motor: Option<Spanned<RawMotor>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawMotor {
+    pub(super) supply_v: Spanned<f64>,
+    pub(super) resistance_ohm: Spanned<f64>,
+    pub(super) torque_constant_nm_per_a: Spanned<f64>,
+    pub(super) gear_ratio: Spanned<f64>,
+    pub(super) wheel_diameter_m: Spanned<f64>,
+    pub(super) inertia_kg_m2: Spanned<f64>,
+    pub(super) viscous_nm_s: Spanned<f64>,
+    pub(super) coulomb_nm: Spanned<f64>,
+    pub(super) dead_band: Spanned<f64>,
+    pub(super) encoder_counts_per_motor_rev: Spanned<u32>,
 }
 
 #[derive(Deserialize)]

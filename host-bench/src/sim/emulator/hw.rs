@@ -13,7 +13,7 @@ use std::rc::Rc;
 use std::task::{Poll, Waker};
 
 use embassy_time::{Duration, Timer};
-use firmware_master::ports::{MotorDrivers, SlaveBus, SpiMasterError};
+use firmware_master::ports::{MotorDrivers, MotorEncoders, SlaveBus, SpiMasterError};
 use firmware_slave::ports::{
     AbsoluteEncoderPins, EdgeBatch, EncoderEdge, EncoderEdges, QuadratureCounters, SpiSlave,
     SpiSlaveError,
@@ -88,6 +88,15 @@ impl MotorDrivers for EmuMotors {
     }
     fn stop(&mut self) {
         self.0.borrow_mut().set_duty([0; 3]);
+    }
+}
+
+/// The drive motors' shaft encoders, read off the plant's wheels.
+pub struct EmuMotorEncoders(pub SharedPlant);
+
+impl MotorEncoders for EmuMotorEncoders {
+    fn counts(&mut self) -> [u16; 3] {
+        self.0.borrow().motor_counts()
     }
 }
 

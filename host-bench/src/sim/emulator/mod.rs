@@ -34,6 +34,7 @@ use virtual_time::Simulation;
 
 use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
 use hw::*;
+use robot_math::motor::DcMotor;
 
 /// A run to emulate: the robot, where it starts and what the host asks of it. Built in
 /// ([`Scenario::seed004_pursuit`]) or read from a scenario file (`formats::scenario`).
@@ -46,6 +47,9 @@ pub struct Scenario {
     /// Its drive, sent to the master (`SetDrive`) at the start of the session.
     #[serde(skip)]
     pub drive: DriveGeometry,
+    /// Its drive motors (the plant's; the master knows only what `drive` says of them).
+    #[serde(skip)]
+    pub motor: DcMotor,
     /// Its measuring sensors, which the emulated slave is built with.
     #[serde(skip)]
     pub layout: Layout,
@@ -96,6 +100,7 @@ impl Scenario {
             description: "seed 004: target (0,3) m -> (2.5,3) m at 0.35 m/s, robot at 0.6 m/s from the origin".into(),
             robot: POWER_ON_ROBOT.into(),
             drive: firmware_master::drive_setup::SEED_004_DRIVE,
+            motor: DcMotor::SEED_004,
             layout: Layout::SEED_004,
             start: (0.0, 0.0, 0.0),
             // The carriage trails the first direction of travel (+y), with the swivel at the
@@ -139,7 +144,6 @@ pub struct Options {
     pub spi_clock_hz: u32,
     pub master: MasterConfig,
     pub slave: SlaveConfig,
-    pub motor_tau: f64,
     pub faults: Faults,
     /// The odometry algorithm the host asks the slave to run.
     pub algorithm: protocol::spi::OdometryAlgorithm,
@@ -178,7 +182,6 @@ impl Options {
             spi_clock_hz: 2_250_000,
             master,
             slave,
-            motor_tau: 0.05,
             faults: scenario.faults.clone(),
             algorithm: protocol::spi::OdometryAlgorithm::Exact,
             encoder_phase: scenario.encoder_phase,
@@ -287,8 +290,8 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         .context("the scenario's drive geometry is impossible")?;
     let plant_cfg = PlantConfig {
         drive: drive.kinematics,
-        speed_at_full_duty: drive.speed_at_full_duty,
-        motor_tau: opts.motor_tau,
+        motor: scenario.motor,
+        motor_metres_per_count: drive.metres_per_motor_count,
         sensors,
     };
     let (x, y, th) = scenario.start;
@@ -340,6 +343,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
                 byte_time,
             },
             EmuMotors(plant.clone()),
+            EmuMotorEncoders(plant.clone()),
             &master_shared,
             &opts.master,
         )
