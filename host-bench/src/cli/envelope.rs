@@ -28,7 +28,8 @@ pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
     let a = &e.arc_vs_line;
     println!(
         "three-omni drive, d = {} m, v_max = {} m/s (seed 003; \"measured\": driven flat out on \
-         the simulated robot, whose motors are ideal, so this checks the plant against the model)",
+         the simulated robot, each wheel held at its limit by the master's speed loop on seed \
+         004's DC motors, timed from the ground truth)",
         e.wheel_distance_m, e.v_max_m_s
     );
     println!(
