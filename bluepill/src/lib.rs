@@ -1,5 +1,5 @@
 //! What both omnibench computers share as STM32F103C8 "blue pill" boards: the clock tree, the
-//! status LED and the panic handler. Each firmware's `board/` layer builds its own peripherals on top of this.
+//! status LED, wheel encoders on timers and the panic handler. Each firmware's `board/` layer builds its own peripherals on top of this.
 #![no_std]
 
 #[cfg(target_os = "none")]
@@ -33,6 +33,34 @@ mod board {
         config.rcc.apb1_pre = APBPrescaler::DIV2;
         config.rcc.apb2_pre = APBPrescaler::DIV1;
         config
+    }
+
+    /// A timer counting a wheel encoder (both boards: the slave's measuring wheels, the
+    /// master's motors): mode 3 counts both edges of both channels (x4, the finest
+    /// resolution), the 16-bit counter wraps through its whole range (the portable code takes
+    /// differences), and pull-ups make open-collector encoders work at no cost to push-pull ones.
+    pub const ENCODER_QEI: embassy_stm32::timer::qei::Config = embassy_stm32::timer::qei::Config {
+        mode: embassy_stm32::timer::qei::QeiMode::Mode3,
+        auto_reload: u16::MAX,
+        ch1_pull: embassy_stm32::gpio::Pull::Up,
+        ch2_pull: embassy_stm32::gpio::Pull::Up,
+    };
+
+    /// The Qei driver has no input-filter setting: after this an edge on CH1/CH2 must be
+    /// stable for 8 timer clocks (111 ns at 72 MHz) to count. It rejects ringing and spikes on
+    /// encoder cables while allowing edge rates of a few MHz, far above any wheel's. Takes the
+    /// timer's `ccmr_input(0)` (general-purpose and advanced timers share its layout).
+    pub fn filter_encoder_inputs(
+        ccmr: embassy_stm32::pac::common::Reg<
+            embassy_stm32::pac::timer::regs::CcmrInput2ch,
+            embassy_stm32::pac::common::RW,
+        >,
+    ) {
+        use embassy_stm32::pac::timer::vals::FilterValue;
+        ccmr.modify(|w| {
+            w.set_icf(0, FilterValue::FCK_INT_N8);
+            w.set_icf(1, FilterValue::FCK_INT_N8);
+        });
     }
 
     /// The on-board LED on PC13, off. It is wired from 3.3 V to the pin, so high = off.

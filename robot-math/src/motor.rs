@@ -65,22 +65,6 @@ impl DcMotor {
         }
     }
 
-    /// Whether every parameter is physical (finite; positive where zero makes no sense).
-    pub fn is_valid(&self) -> bool {
-        let positive = [
-            self.supply_v,
-            self.resistance_ohm,
-            self.torque_constant,
-            self.gear_ratio,
-            self.wheel_radius_m,
-            self.inertia_kg_m2,
-        ];
-        let non_negative = [self.viscous_nm_s, self.coulomb_nm, self.dead_band];
-        positive.iter().all(|v| v.is_finite() && *v > 0.0)
-            && non_negative.iter().all(|v| v.is_finite() && *v >= 0.0)
-            && self.dead_band < 1.0
-    }
-
     /// Voltage the driver applies for a duty in [-1, 1].
     pub fn voltage(&self, duty: f64) -> f64 {
         let duty = duty.clamp(-1.0, 1.0);
@@ -153,7 +137,6 @@ mod tests {
 
     #[test]
     fn settles_on_its_steady_speed_and_inside_the_dead_band_does_nothing() {
-        assert!(M.is_valid());
         let mut v = 0.0;
         for _ in 0..20_000 {
             v = M.speed_after(v, 0.6, 1e-4);

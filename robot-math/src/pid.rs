@@ -17,14 +17,6 @@ pub struct PidGains {
     pub ff: f64,
 }
 
-impl PidGains {
-    pub fn is_valid(&self) -> bool {
-        [self.kp, self.ki, self.kd, self.ff]
-            .iter()
-            .all(|g| g.is_finite() && *g >= 0.0)
-    }
-}
-
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpeedPid {
     pub gains: PidGains,

@@ -16,6 +16,18 @@ pub fn binary_to_gray(b: u16) -> u16 {
     b ^ (b >> 1)
 }
 
+/// Rim speeds (m/s) from two readings of free-running 16-bit encoder counters `dt` seconds
+/// apart: the wrapped difference, so a counter passing 65535 → 0 reads as the one count it
+/// moved (valid while a wheel moves under 32 768 counts between readings).
+pub fn speeds_from_counts<const N: usize>(
+    before: [u16; N],
+    now: [u16; N],
+    metres_per_count: f64,
+    dt: f64,
+) -> [f64; N] {
+    core::array::from_fn(|i| now[i].wrapping_sub(before[i]) as i16 as f64 * metres_per_count / dt)
+}
+
 /// Extends a wrapping 16-bit hardware counter (a timer in encoder mode) to a 64-bit total.
 ///
 /// Correct as long as the counter moves less than half its range (32 768 counts) between two

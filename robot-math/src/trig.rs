@@ -2,7 +2,7 @@
 //! turns.
 //!
 //! Why not `libm::sin` / `libm::cos`: they reduce any f64 (up to 1e308) exactly, with a
-//! Payne–Hanek reduction whose code and tables cost ~4.4 KB of the master's flash, where
+//! Payne–Hanek reduction whose code and tables cost ~4.1 KB of the master's flash, where
 //! soft-float f64 makes every byte count (the goal is 48 KiB for the whole image). Here the
 //! reduction is Cody–Waite with π/2 split in three parts (exact quotient for |x| < 2^20·π/2,
 //! 1.6e6 rad), then Taylor kernels on [-π/4, π/4] carried past the last term that can show in

@@ -16,10 +16,9 @@ use core::sync::atomic::{AtomicU16, Ordering};
 
 use embassy_stm32::gpio::{AfioRemap, Input, Pull};
 use embassy_stm32::interrupt::{self as irq, InterruptExt, Priority};
-use embassy_stm32::pac::timer::vals::FilterValue;
 use embassy_stm32::pac::{self, interrupt};
 use embassy_stm32::peripherals::{PA8, PA9, PB4, PB5, PB8, PB9, TIM1, TIM3};
-use embassy_stm32::timer::qei::{Config, Qei, QeiMode};
+use embassy_stm32::timer::qei::Qei;
 use embassy_stm32::timer::{Ch1, Ch2};
 use embassy_stm32::Peri;
 use firmware_master::ports::{MotorEncoders, DRIVE_WHEELS};
@@ -52,26 +51,11 @@ impl Encoders {
         pb8: Peri<'static, PB8>,
         pb9: Peri<'static, PB9>,
     ) -> Self {
-        let config = Config {
-            // x4 decoding, the 16-bit counter wrapping freely (the controller takes
-            // differences), pull-ups for open-collector encoders.
-            mode: QeiMode::Mode3,
-            auto_reload: u16::MAX,
-            ch1_pull: Pull::Up,
-            ch2_pull: Pull::Up,
-        };
         // TIM3 partial remap (2): CH1/CH2 on PB4/PB5. TIM1 reset mapping (0): PA8/PA9.
-        let motor1 = Qei::new::<Ch1, Ch2, AfioRemap<2>>(tim3, pb4, pb5, config);
-        let motor2 = Qei::new::<Ch1, Ch2, AfioRemap<0>>(tim1, pa8, pa9, config);
-        // As on the slave: an edge must be stable for 8 timer clocks to count.
-        pac::TIM3.ccmr_input(0).modify(|w| {
-            w.set_icf(0, FilterValue::FCK_INT_N8);
-            w.set_icf(1, FilterValue::FCK_INT_N8);
-        });
-        pac::TIM1.ccmr_input(0).modify(|w| {
-            w.set_icf(0, FilterValue::FCK_INT_N8);
-            w.set_icf(1, FilterValue::FCK_INT_N8);
-        });
+        let motor1 = Qei::new::<Ch1, Ch2, AfioRemap<2>>(tim3, pb4, pb5, bluepill::ENCODER_QEI);
+        let motor2 = Qei::new::<Ch1, Ch2, AfioRemap<0>>(tim1, pa8, pa9, bluepill::ENCODER_QEI);
+        bluepill::filter_encoder_inputs(pac::TIM3.ccmr_input(0));
+        bluepill::filter_encoder_inputs(pac::TIM1.ccmr_input(0));
 
         let motor3 = [Input::new(pb8, Pull::Up), Input::new(pb9, Pull::Up)];
         critical_section::with(|cs| {

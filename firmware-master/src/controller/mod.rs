@@ -448,11 +448,8 @@ impl Controller {
         };
         if let Some((before, at)) = self.motor_counts {
             let dt = now.saturating_duration_since(at).as_micros() as f64 * 1e-6;
-            self.motor_speeds = (dt > 0.0).then(|| {
-                core::array::from_fn(|i| {
-                    counts[i].wrapping_sub(before[i]) as i16 as f64 * per_count / dt
-                })
-            });
+            self.motor_speeds = (dt > 0.0)
+                .then(|| robot_math::sensors::speeds_from_counts(before, counts, per_count, dt));
         }
         self.motor_counts = Some((counts, now));
     }

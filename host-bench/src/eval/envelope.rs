@@ -21,6 +21,7 @@ use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
 use firmware_master::drive_setup::{DriveSetup, SEED_004_DRIVE};
 use robot_math::motor::DcMotor;
 use robot_math::pid::SpeedPid;
+use robot_math::sensors::speeds_from_counts;
 
 /// Settling before a measurement (the speed loops' integrators included), and the measuring
 /// window, seconds.
@@ -169,9 +170,7 @@ fn drive_flat_out(omni: &Omni3, wheels: [f64; 3]) -> Result<(f64, f64)> {
     // One control period: the speed each encoder showed over the last, then the loops' duty.
     let mut control = |plant: &mut Plant, first: bool| {
         let now = plant.motor_counts();
-        let measured: [f64; 3] = core::array::from_fn(|i| {
-            now[i].wrapping_sub(counts[i]) as i16 as f64 * per_count / CONTROL_S
-        });
+        let measured = speeds_from_counts(counts, now, per_count, CONTROL_S);
         counts = now;
         let dt = if first { 0.0 } else { CONTROL_S };
         let duty: [i16; 3] = core::array::from_fn(|i| {

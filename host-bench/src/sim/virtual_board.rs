@@ -190,13 +190,16 @@ impl Course {
 
 /// The virtual board's robot: the master's power-on drive, which must be omni wheels (the
 /// course steers the body's twist freely), and its wheel speed at full duty.
-fn omni_drive(master: &MasterConfig) -> Result<(Omni3, f64)> {
+/// The motors the course drives open loop: without friction its duties move the robot where it
+/// steers (what this board is for is the slave's sensors, not the motors).
+const COURSE_MOTOR: DcMotor = DcMotor::SEED_004.frictionless();
+
+fn omni_drive(master: &MasterConfig) -> Result<Omni3> {
     match DriveSetup::from_geometry(&master.drive) {
         Some(DriveSetup {
             kinematics: DriveKinematics::Omni3(omni),
-            speed_at_full_duty,
             ..
-        }) => Ok((omni, speed_at_full_duty)),
+        }) => Ok(omni),
         Some(_) => anyhow::bail!("the virtual board drives omni wheels only"),
         None => anyhow::bail!("the master's drive geometry is impossible"),
     }
@@ -214,15 +217,13 @@ pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
 /// Serve on `pty` until `stop` says so (forever for the CLI).
 pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
-    let (drive, speed_at_full_duty) = omni_drive(&opts.master)?;
+    let drive = omni_drive(&opts.master)?;
     let sensors = MeasuringSensors::from_layout(&opts.slave.layout)
         .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
     let plant_cfg = PlantConfig {
         drive: DriveKinematics::Omni3(drive),
-        // The course below drives open loop (no speed loops, no motor encoders): without
-        // friction its duties move the robot where it steers. What this board is for is the
-        // slave's sensors, not the motors.
-        motor: DcMotor::SEED_004.frictionless(),
+        // The course below drives open loop: no speed loops, no motor encoders.
+        motor: COURSE_MOTOR,
         motor_metres_per_count: None,
         sensors,
     };
@@ -239,7 +240,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         speed: opts.course_speed,
         steering: Steering::for_sensors(&sensors),
         drive,
-        speed_at_full_duty,
+        speed_at_full_duty: COURSE_MOTOR.steady_speed(1.0),
     };
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
@@ -386,10 +387,10 @@ mod tests {
     fn an_axle_robot_is_driven_round_the_square_without_sliding_sideways() {
         let layout = axle_layout();
         let sensors = MeasuringSensors::from_layout(&layout).unwrap();
-        let (drive, speed_at_full_duty) = omni_drive(&MasterConfig::DEFAULT).unwrap();
+        let drive = omni_drive(&MasterConfig::DEFAULT).unwrap();
         let cfg = PlantConfig {
             drive: DriveKinematics::Omni3(drive),
-            motor: DcMotor::SEED_004.frictionless(),
+            motor: COURSE_MOTOR,
             motor_metres_per_count: None,
             sensors,
         };
@@ -400,7 +401,7 @@ mod tests {
             speed: 0.3,
             steering: Steering::for_sensors(&sensors),
             drive,
-            speed_at_full_duty,
+            speed_at_full_duty: COURSE_MOTOR.steady_speed(1.0),
         };
         let mut odo = Odometry::new(
             &layout,
