@@ -21,6 +21,8 @@ name = "seed002-circle"
 
 [controller]
 k_lateral = 6.0
+speed_ki = 4.5
+speed_kd = 0.002
 "#;
 
 /// Write `text` (with the robots folder filled in) to a temporary file and load it.
@@ -48,6 +50,9 @@ fn a_good_file_reads_into_the_run() {
     );
     assert_eq!(s.drive.k_lateral_milli, 6000);
     assert_eq!(s.drive.k_forward_milli, 8000, "the default");
+    assert_eq!(s.drive.speed_ki_micro, 4_500_000);
+    assert_eq!(s.drive.speed_kd_micro, 2_000);
+    assert_eq!(s.drive.speed_kp_micro, 1_000_000, "the default");
     assert_eq!(s.start, (-0.15, 0.0, 0.0));
 }
 
@@ -62,9 +67,11 @@ fn mistakes_are_named_by_line_and_key() {
         (GOOD.replace("heading_deg = 0.0", "heading_deg = 0.0\nswivel_deg = 90"), ":10:14: key `start.swivel_deg`", "no swivel carriage"),
         (GOOD.replace("[trajectory]\nname = \"seed002-circle\"\n", ""), ":1:1: key `target`", "missing"),
         (GOOD.replace("k_lateral", "k_sideways"), ":15:1: key `controller.k_sideways`", "unknown field"),
+        (GOOD.replace("speed_ki = 4.5", "speed_ki = -1"), ":16:12: key `controller.speed_ki`", "must be >= 0"),
+        (GOOD.replace("speed_kd = 0.002", "speed_kd = 1e6"), ":17:12: key `controller.speed_kd`", "at most 1000"),
         (GOOD.replace("v1", "v2"), ":1:10: key `format`", "unsupported format"),
         (GOOD.replace("[start]", "[[start]]"), "key `start`", "write [start]"),
-        (format!("{GOOD}[noise]\nencoder_phase = [0.5, 1.0]\n"), ":17:17: key `noise.encoder_phase`", "[0, 1)"),
+        (format!("{GOOD}[noise]\nencoder_phase = [0.5, 1.0]\n"), ":19:17: key `noise.encoder_phase`", "[0, 1)"),
         (format!("{GOOD}[target]\nfrom_m = [0, 0]\nto_m = [1, 0]\nspeed_m_s = 0.1\nrobot_speed_m_s = 0.2\n"), ":11:1: key `trajectory`", "not both"),
     ];
     for (text, place, what) in cases {

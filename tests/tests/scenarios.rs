@@ -78,6 +78,21 @@ fn a_weak_law_misses_the_goal() {
     assert!(r.tracking_max_m.unwrap() > 10.0 * MAX_GOAL_M, "{r:?}");
 }
 
+/// The speed loops' gains from the file reach the master (in `SetDrive`) and matter: without
+/// them the duty is the feed-forward alone and the motors' friction and dead band show as lag.
+#[test]
+fn the_speed_loops_close_what_the_feed_forward_misses() {
+    let with = load("seed002-square.toml");
+    let mut without = with.clone();
+    without.drive.speed_kp_micro = 0;
+    without.drive.speed_ki_micro = 0;
+    let (a, b) = (run(&with, 1), run(&without, 1));
+    assert!(
+        b.tracking_rms_m.unwrap() > 2.0 * a.tracking_rms_m.unwrap(),
+        "{a:?}\n{b:?}"
+    );
+}
+
 #[test]
 fn every_scenario_file_runs_and_ends_holding_still() {
     let mut names = Vec::new();

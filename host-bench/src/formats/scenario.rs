@@ -79,6 +79,9 @@ struct RawController {
     ff_lateral: Option<Spanned<f64>>,
     diff_forward: Option<Spanned<f64>>,
     diff_lateral: Option<Spanned<f64>>,
+    speed_kp: Option<Spanned<f64>>,
+    speed_ki: Option<Spanned<f64>>,
+    speed_kd: Option<Spanned<f64>>,
     pursuit_period_s: Option<Spanned<f64>>,
 }
 
@@ -226,6 +229,25 @@ impl TomlFile<'_> {
             }
             if let Some(k) = gain(&c.diff_lateral, "diff_lateral", false)? {
                 drive.diff_lateral_milli = k;
+            }
+            // The speed loops' gains travel in millionths (a small kd is a real setting).
+            let speed_gain = |v: &Option<Spanned<f64>>, key: &str| -> Res<Option<u32>> {
+                let Some(v) = v else { return Ok(None) };
+                let key = format!("controller.{key}");
+                let x = self.non_negative(v, &key)?;
+                if x > 1000.0 {
+                    return Err(self.at(v.span(), &key, format!("must be at most 1000, got {x}")));
+                }
+                Ok(Some((x * 1e6).round() as u32))
+            };
+            if let Some(k) = speed_gain(&c.speed_kp, "speed_kp")? {
+                drive.speed_kp_micro = k;
+            }
+            if let Some(k) = speed_gain(&c.speed_ki, "speed_ki")? {
+                drive.speed_ki_micro = k;
+            }
+            if let Some(k) = speed_gain(&c.speed_kd, "speed_kd")? {
+                drive.speed_kd_micro = k;
             }
             if let Some(p) = &c.pursuit_period_s {
                 pursuit_period_s = Some(self.non_negative(p, "controller.pursuit_period_s")?);
