@@ -45,6 +45,12 @@ pub struct MasterConfig {
     /// ...or turned this far from the goal's heading, radians (over two of the swivel
     /// encoder's 1.4° steps).
     pub hold_heading_release: f64,
+    /// Standing inside those release bands of a stopped goal without moving a quarter of
+    /// `arrive_tolerance` for this long also arrives, µs: motors that cannot close the last
+    /// millimetres (stiction with no integrator, a wheel against an obstacle) are switched off
+    /// rather than left humming. Longer than the speed loops take to break a wheel away from
+    /// the goal's edge (about 1 s at 1.5 mm), so creeping in is not cut short.
+    pub hold_settle_us: u32,
     pub control_period_us: u32,
     pub poll_period_us: u32,
     pub telemetry_period_us: u32,
@@ -95,6 +101,7 @@ impl MasterConfig {
         arrive_heading_tolerance: 0.02,
         hold_release: 0.005,
         hold_heading_release: 0.06,
+        hold_settle_us: 2_000_000,
         control_period_us: 10_000,
         poll_period_us: 2_000,
         telemetry_period_us: 20_000,

@@ -72,6 +72,68 @@ fn at_the_goal_the_master_switches_the_motors_off_and_holds() {
     assert_eq!(s.motor_switch_ons, 1, "one start, one stop: {s:?}");
 }
 
+/// A standing goal just outside the 1 mm arrival band, with the motors' stiction and driver
+/// dead band in the plant: the law asks for millimetres per second, the speed loops' integrators
+/// wind up until the wheels break away, and the robot creeps in and stops: one switch-on, no
+/// hunting round the goal, no re-switch while it stands.
+#[test]
+fn a_goal_a_few_millimetres_away_is_crept_into_with_one_switch_on() {
+    use host_bench::sim::emulator::Motion;
+    for (i, d) in [0.0015, 0.003, 0.006].into_iter().enumerate() {
+        let mut scenario = Scenario::seed004_pursuit();
+        scenario.motion = Motion::Pursue {
+            target_from: (d, 0.0),
+            target_to: (d, 0.0),
+            target_speed: 0.35,
+            robot_speed: 0.60,
+            heading: 0.0,
+        };
+        let mut opts = Options::new(&scenario);
+        opts.seed = 1 + i as u64;
+        opts.duration = 30.0;
+        let s = emulator::run(&scenario, &opts).unwrap().summary;
+        let master = firmware_master::MasterConfig::DEFAULT;
+        assert!(
+            s.arrived && s.distance_to_goal_m < master.hold_release,
+            "{d} m: {s:?}"
+        );
+        assert_eq!(s.motor_switch_ons, 1, "{d} m: {s:?}");
+        assert_eq!(s.motor_switch_ons_after_arrival, Some(0), "{d} m: {s:?}");
+        // Crept in, not given up on: inside the 1 mm arrival band.
+        assert!(
+            s.distance_to_goal_m < master.arrive_tolerance,
+            "{d} m: {s:?}"
+        );
+    }
+}
+
+/// The same, with the speed loops' integrators off (a setting a user may choose): the
+/// feed-forward and kp alone stay inside the drivers' dead band and the wheels never break
+/// away. The master gives up after `hold_settle_us` standing still and switches off.
+#[test]
+fn stuck_in_the_dead_band_near_the_goal_the_master_switches_off() {
+    use host_bench::sim::emulator::Motion;
+    let mut scenario = Scenario::seed004_pursuit();
+    scenario.motion = Motion::Pursue {
+        target_from: (0.003, 0.0),
+        target_to: (0.003, 0.0),
+        target_speed: 0.35,
+        robot_speed: 0.60,
+        heading: 0.0,
+    };
+    scenario.drive.speed_ki_micro = 0;
+    let mut opts = Options::new(&scenario);
+    opts.duration = 30.0;
+    let run = emulator::run(&scenario, &opts).unwrap();
+    let s = &run.summary;
+    let master = firmware_master::MasterConfig::DEFAULT;
+    assert!(s.arrived && s.distance_to_goal_m > 0.002, "{s:?}");
+    assert_eq!(s.motor_switch_ons, 1, "{s:?}");
+    let off = motors_stopped_at(&run, 0.5).expect("the motors stopped");
+    let settle = master.hold_settle_us as f64 * 1e-6;
+    assert!(off > settle && off < settle + 0.1, "off at {off} s");
+}
+
 #[test]
 fn the_same_seed_gives_the_same_run() {
     let a = run_default(7, |_| {});

@@ -129,6 +129,10 @@ pub struct Controller {
     /// Arrived at a stopped target: the motors are off until the robot is pushed past
     /// [`MasterConfig::hold_release`] or a new target comes.
     holding: bool,
+    /// Where the tracked point and the heading last moved to (by a quarter of the arrival
+    /// bands) and when: a robot that stands still near a stopped goal for
+    /// [`MasterConfig::hold_settle_us`] holds.
+    still: Option<((f64, f64, f64), Instant)>,
     /// With seed 004's Euler pursuit: the field velocity taken at the period's start, and when
     /// the period ends.
     euler: Option<((f64, f64), Instant)>,
@@ -185,6 +189,7 @@ impl Controller {
             tracker: PointTracker::new(drive.gains),
             last_point: None,
             holding: false,
+            still: None,
             euler: None,
             status: 0,
             last_host_rx: None,
@@ -481,10 +486,24 @@ impl Controller {
         let turned = r
             .heading
             .map_or(0.0, |h| libm::fabs(wrap_angle(h - est.theta)));
-        if r.standing
-            && off < self.cfg.arrive_tolerance
-            && turned < self.cfg.arrive_heading_tolerance
-        {
+        let settled = match self.still {
+            Some((p, since))
+                if robot_math::se2::norm(point.0 - p.0, point.1 - p.1)
+                    < self.cfg.arrive_tolerance / 4.0
+                    && libm::fabs(wrap_angle(est.theta - p.2))
+                        < self.cfg.arrive_heading_tolerance / 4.0 =>
+            {
+                us_since(now, Some(since)) >= self.cfg.hold_settle_us as u64
+            }
+            _ => {
+                self.still = Some(((point.0, point.1, est.theta), now));
+                false
+            }
+        };
+        let arrived = off < self.cfg.arrive_tolerance && turned < self.cfg.arrive_heading_tolerance;
+        let stalled =
+            settled && off < self.cfg.hold_release && turned < self.cfg.hold_heading_release;
+        if r.standing && (arrived || stalled) {
             self.holding = true;
         }
         // Holding still at the goal, without chasing the sensors' last count: the motors stay

@@ -117,6 +117,56 @@ fn at_the_goal_the_motors_switch_off_and_stay_off_until_pushed_away() {
 }
 
 #[test]
+fn stuck_just_outside_the_arrival_band_it_settles_and_switches_off() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    let settle_ms = MasterConfig::DEFAULT.hold_settle_us as u64 / 1000;
+    let mut seq = 0;
+    let mut at = |c: &mut Controller, ms: u64, x_um: i32| {
+        seq += 1;
+        c.on_slave_frame(t(ms), Ok(slave_frame(seq, 0, x_um)));
+        c.on_host_message(t(ms), HostToMaster::Heartbeat);
+        c.control(t(ms))
+    };
+    // Creeping: 0.3 mm every 0.5 s (more than a quarter of the 1 mm band) keeps it driving.
+    let mut x = 996_000;
+    for ms in (10..=4_000).step_by(10) {
+        if ms % 500 == 0 {
+            x += 300;
+        }
+        assert!(matches!(at(&mut c, ms, x), Drive::Duty(_)), "{ms} ms");
+    }
+    // Stuck 2.8 mm short (inside the 5 mm release band): driven for the settle time, then off.
+    let stuck = x;
+    let mut ms = 4_010;
+    while ms < 4_000 + settle_ms - 10 {
+        assert!(matches!(at(&mut c, ms, stuck), Drive::Duty(_)), "{ms} ms");
+        ms += 10;
+    }
+    let mut stopped_at = None;
+    for ms in (ms..ms + 100).step_by(10) {
+        if at(&mut c, ms, stuck) == Drive::Stop {
+            stopped_at.get_or_insert(ms);
+        }
+    }
+    assert!(
+        matches!(stopped_at, Some(ms) if ms <= 4_000 + settle_ms + 10),
+        "settled at {stopped_at:?}"
+    );
+    assert_ne!(c.status() & status::ARRIVED, 0);
+    assert_eq!(c.status() & status::MOTORS_ON, 0);
+    // Stuck 8 mm short (outside the release band) it keeps trying: that is no hold.
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    for ms in (10..10_000).step_by(10) {
+        seq += 1;
+        c.on_slave_frame(t(ms), Ok(slave_frame(seq, 0, 992_000)));
+        c.on_host_message(t(ms), HostToMaster::Heartbeat);
+        assert!(matches!(c.control(t(ms)), Drive::Duty(_)), "{ms} ms");
+    }
+}
+
+#[test]
 fn a_stuck_slave_counts_as_lost() {
     let mut c = ctl();
     c.on_host_message(t(0), follow(500_000));
