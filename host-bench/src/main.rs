@@ -105,6 +105,10 @@ enum Command {
         /// Simulated seconds of each run, 10 to 3600 (the target stops after 7.1 s).
         #[arg(long, default_value_t = 12.0)]
         duration: f64,
+        /// Write the plot as an SVG (paths for a few periods; overshoot and turning against τ,
+        /// emulated and from the paper's equations).
+        #[arg(long, value_name = "FILE.svg")]
+        out: Option<PathBuf>,
     },
     /// Write the exact tick stream a robot's ideal encoders produce along a trajectory
     /// (docs/tick-stream.md).
@@ -258,9 +262,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Accuracy { json, out, seeds } => cli::analyse::run_accuracy(json, out, seeds),
         Command::Envelope { json, out } => cli::envelope::run_envelope(json, out),
-        Command::PursuitSweep { json, duration } => {
-            cli::envelope::run_pursuit_sweep(json, duration)
-        }
+        Command::PursuitSweep {
+            json,
+            duration,
+            out,
+        } => cli::pursuit_sweep::run_pursuit_sweep(json, duration, out),
         Command::Generate(a) => cli::generate::run_generate(a),
         Command::Replay {
             robot,

@@ -73,9 +73,18 @@ fn envelope_json_gives_seed_003s_top_speeds_and_the_svg_is_written() {
 }
 
 #[test]
-fn pursuit_sweep_json_has_a_row_per_period() {
-    let args = ["pursuit-sweep", "--json", "--duration", "10"];
-    let v = json_of(&args.map(std::ffi::OsStr::new));
+fn pursuit_sweep_json_has_a_row_per_period_and_the_svg_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let svg = dir.path().join("pursuit.svg");
+    let v = json_of(&[
+        "pursuit-sweep".as_ref(),
+        "--json".as_ref(),
+        "--duration".as_ref(),
+        "10".as_ref(),
+        "--out".as_ref(),
+        svg.as_ref(),
+    ]);
+    assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
     let rows = v["rows"].as_array().expect("rows");
     assert_eq!(rows.len(), 16);
     for (r, tau) in rows.iter().zip(host_bench::eval::pursuit_sweep::PERIODS_S) {
@@ -83,6 +92,9 @@ fn pursuit_sweep_json_has_a_row_per_period() {
         for key in ["jitter", "tracking_rms_m", "hold_rms_m", "hold_max_m"] {
             assert!(r[key].as_f64().is_some_and(f64::is_finite), "{key}: {r}");
         }
+        // The paper's equations for every Euler period; none for our law (null, not NaN).
+        let paper = r["paper_hold_max_m"].as_f64();
+        assert_eq!(paper.is_some(), tau > 0.0, "{r}");
     }
     // Too short to see the target stop: refused, with the reason.
     let out = host_bench()

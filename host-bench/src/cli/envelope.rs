@@ -1,6 +1,5 @@
-//! The motion studies of the seeds: `host-bench envelope` (seed 003's speed envelope, model and
-//! measured, and its arc-versus-line crossover: `eval::envelope`) and `host-bench
-//! pursuit-sweep` (seed 004's pursuit period: `eval::pursuit_sweep`).
+//! `host-bench envelope`: seed 003's speed envelope, model and measured, and its
+//! arc-versus-line comparison (`eval::envelope`).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -120,41 +119,4 @@ fn write_svg(e: &Envelope, path: &std::path::Path) -> Result<()> {
     }
     write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
         .with_context(|| format!("--out {}", path.display()))
-}
-
-pub fn run_pursuit_sweep(json: bool, duration: f64) -> Result<()> {
-    anyhow::ensure!(
-        duration.is_finite() && (10.0..=3600.0).contains(&duration),
-        "--duration must be 10 s to 3600 s (the target stops after 7.1 s; the hold is scored \
-         from 1 s later)"
-    );
-    use host_bench::eval::pursuit_sweep::{run, PERIODS_S};
-    let rows = run(&PERIODS_S, duration)?;
-    if json {
-        println!("{}", serde_json::json!({ "rows": rows }));
-        return Ok(());
-    }
-    println!(
-        "seed004-pursuit, {duration} s. While the target moves: jitter = turning of the \
-         direction of travel (rad/s), tracking = RMS distance to the target. Once it stopped \
-         (+1 s): distance RMS / max and turning."
-    );
-    println!(
-        "{:>5}  {:>7}  {:>11}  {:>11}  {:>11}  {:>8}  {:>7}  law",
-        "tau s", "jitter", "tracking m", "hold rms mm", "hold max mm", "hold rad/s", "path m"
-    );
-    for r in &rows {
-        println!(
-            "{:>5.1}  {:>7.3}  {:>11.3}  {:>11.1}  {:>11.1}  {:>8.2}  {:>7.3}  {}",
-            r.tau_s,
-            r.jitter,
-            r.tracking_rms_m,
-            r.hold_rms_m * 1e3,
-            r.hold_max_m * 1e3,
-            r.hold_jitter,
-            r.path_length_m,
-            r.law
-        );
-    }
-    Ok(())
 }

@@ -5,5 +5,6 @@ pub mod analyse;
 pub mod envelope;
 pub mod flash;
 pub mod generate;
+pub mod pursuit_sweep;
 pub mod serial;
 pub mod sweep;
