@@ -69,7 +69,15 @@ fn envelope_json_gives_seed_003s_top_speeds_and_the_svg_is_written() {
     assert!((ratio("translate_max_ratio") / (2.0 / 3f64.sqrt()) - 1.0).abs() < 0.02);
     assert!((ratio("spin_translate_max_ratio") / (4.0 / 3.0) - 1.0).abs() < 0.02);
     assert_eq!(v["directions"].as_array().map(Vec::len), Some(360));
-    assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+    // Arc versus line, driven: a goal each side of the crossover, and where the times cross.
+    let a = &v["arc_vs_line"];
+    assert_eq!(a["driven"].as_array().map(Vec::len), Some(7));
+    let x = a["measured_crossover_angle_rad"]
+        .as_f64()
+        .expect("crossover");
+    assert!((x - 1.831).abs() < 0.1, "{x}");
+    let svg = std::fs::read_to_string(&svg).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("arc with spin vs straight line"));
 }
 
 #[test]

@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use host_bench::eval::envelope::{self, Envelope};
+use host_bench::eval::envelope::{self, ArcVsLine, Envelope};
 use host_bench::formats::atomic::write_atomically;
 use plotters::prelude::*;
 
@@ -56,18 +56,58 @@ pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
         a.paper_crossover_angle_rad,
         a.paper_crossover_chord_over_d
     );
+    println!(
+        "driven from rest on the simulated robot, A to B at each central angle (time to cross \
+         B, model in brackets; the motors' spin-up adds the same to both):"
+    );
+    println!(
+        "{:>9}  {:>8}  {:>17}  {:>17}  {:>10}  {:>9}",
+        "angle rad", "chord m", "line s", "arc s", "arc saves", "miss mm"
+    );
+    for r in &a.driven {
+        let g = &r.goal;
+        println!(
+            "{:>9.3}  {:>8.3}  {:>7.3} ({:>6.3})  {:>7.3} ({:>6.3})  {:>8.3} s  {:>9.2}",
+            g.angle_rad,
+            g.chord_m,
+            g.line_measured_s,
+            g.line_model_s,
+            g.arc_measured_s,
+            g.arc_model_s,
+            g.arc_gain_measured_s,
+            g.line_miss_m.max(g.arc_miss_m) * 1e3
+        );
+    }
+    match a.measured_crossover_angle_rad {
+        Some(x) => println!("measured crossover: {x:.3} rad"),
+        None => println!("measured crossover: none over these goals"),
+    }
     Ok(())
 }
 
-/// The envelope as a polar picture: translation speed against direction (model line,
-/// measured points) and the speed reached while spinning.
+type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
+
+/// Left: the envelope as a polar picture. Right: the arc-versus-line paths as driven.
 fn write_svg(e: &Envelope, path: &std::path::Path) -> Result<()> {
     let mut text = String::new();
     {
-        let root = SVGBackend::with_string(&mut text, (800, 800)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut text, (1600, 800)).into_drawing_area();
         root.fill(&WHITE)?;
+        let (left, right) = root.split_horizontally(800);
+        draw_polar(e, &left)?;
+        draw_arc_vs_line(&e.arc_vs_line, &right)?;
+        root.present()?;
+    }
+    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
+        .with_context(|| format!("--out {}", path.display()))
+}
+
+/// Translation speed against direction (model line, measured points) and the speed reached
+/// while spinning.
+fn draw_polar(e: &Envelope, area: &Area) -> Result<()> {
+    {
         let r = 1.5 * e.v_max_m_s;
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(area)
             .caption(
                 "three-omni speed envelope (m/s, body frame)",
                 ("sans-serif", 22),
@@ -115,8 +155,77 @@ fn write_svg(e: &Envelope, path: &std::path::Path) -> Result<()> {
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .draw()?;
-        root.present()?;
     }
-    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
-        .with_context(|| format!("--out {}", path.display()))
+    Ok(())
+}
+
+/// The field: the arc every wheel at v_max draws from A and the straight runs to goals on
+/// it, as driven; B marked with both times.
+fn draw_arc_vs_line(a: &ArcVsLine, area: &Area) -> Result<()> {
+    let Some(longest) = a.driven.last() else {
+        return Ok(());
+    };
+    let (mut lo, mut hi) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));
+    for (x, y) in longest
+        .arc_path
+        .iter()
+        .chain(a.driven.iter().flat_map(|r| &r.line_path))
+    {
+        lo = (lo.0.min(*x), lo.1.min(*y));
+        hi = (hi.0.max(*x), hi.1.max(*y));
+    }
+    // Equal scales on both axes, with a margin.
+    let span = (hi.0 - lo.0).max(hi.1 - lo.1) * 1.15;
+    let mid = ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0);
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            "arc with spin vs straight line, driven from rest (m)",
+            ("sans-serif", 22),
+        )
+        .margin(20)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(
+            mid.0 - span / 2.0..mid.0 + span / 2.0,
+            mid.1 - span / 2.0..mid.1 + span / 2.0,
+        )?;
+    chart.configure_mesh().x_desc("x").y_desc("y").draw()?;
+    chart
+        .draw_series(LineSeries::new(
+            longest.arc_path.clone(),
+            BLUE.stroke_width(2),
+        ))?
+        .label("arc: every wheel at v_max, radius 4d")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLUE));
+    for (i, r) in a.driven.iter().enumerate() {
+        let series =
+            chart.draw_series(LineSeries::new(r.line_path.clone(), RED.stroke_width(1)))?;
+        if i == 0 {
+            series
+                .label("line: the best direction, 2/sqrt3 v_max")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RED));
+        }
+        let g = &r.goal;
+        let winner = if g.arc_gain_measured_s > 0.0 {
+            "arc"
+        } else {
+            "line"
+        };
+        chart.draw_series(std::iter::once(Circle::new(r.b, 4, BLACK.filled())))?;
+        chart.draw_series(std::iter::once(Text::new(
+            format!(
+                "{:.2} rad: arc {:.2} s, line {:.2} s ({winner})",
+                g.angle_rad, g.arc_measured_s, g.line_measured_s
+            ),
+            (r.b.0 + span * 0.01, r.b.1),
+            ("sans-serif", 13),
+        )))?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerLeft)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
 }

@@ -17,6 +17,7 @@ use robot_math::wheel::Wheel;
 use robot_math::{Pose2, Twist};
 use serde::Serialize;
 
+use super::arc_vs_line::{self, GoalRuns};
 use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
 use firmware_master::drive_setup::{DriveSetup, SEED_004_DRIVE};
 use robot_math::motor::DcMotor;
@@ -31,7 +32,7 @@ const WINDOW_S: f64 = 1.0;
 /// and the pose by RK4, so a millisecond is far inside what a speed needs.
 const STEP_S: f64 = 1e-3;
 /// The master's control period, seconds (its speed loops run at it).
-const CONTROL_S: f64 = 0.01;
+pub(crate) const CONTROL_S: f64 = 0.01;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Envelope {
@@ -82,6 +83,10 @@ pub struct ArcVsLine {
     /// equations give 8·sin(θ*/2)·d = 6.34 d.
     pub paper_crossover_angle_rad: f64,
     pub paper_crossover_chord_over_d: f64,
+    /// Driven on the simulated robot from rest, goals either side of the crossover
+    /// (`eval::arc_vs_line`), and where the measured times cross.
+    pub driven: Vec<GoalRuns>,
+    pub measured_crossover_angle_rad: Option<f64>,
 }
 
 /// The envelope of seed 003's drive (d, v_max as the master's default configuration).
@@ -142,62 +147,93 @@ pub fn run(wheel_distance_m: f64, v_max_m_s: f64) -> Result<Envelope> {
         spin_cases,
         spin_translate_max_ratio: spin_max / v_max_m_s,
         spin_translate_max_ratio_model: 4.0 / 3.0,
-        arc_vs_line: arc_vs_line(wheel_distance_m),
+        arc_vs_line: arc_vs_line(&omni)?,
     })
 }
 
 /// The simulated robot with its wheels commanded to `wheels` (m/s) from rest: once settled,
 /// the speed of its reference point along its path (m/s) and its spin (rad/s).
 fn drive_flat_out(omni: &Omni3, wheels: [f64; 3]) -> Result<(f64, f64)> {
-    let drive = DriveSetup::from_geometry(&SEED_004_DRIVE).context("seed 004's drive")?;
-    let cfg = PlantConfig {
-        drive: robot_math::drive::DriveKinematics::Omni3(*omni),
-        motor: DcMotor::SEED_004,
-        motor_metres_per_count: drive.metres_per_motor_count,
-        // Not read here: two body-fixed wheels with metre-long counts, so the plant keeps
-        // next to no encoder edges.
-        sensors: MeasuringSensors::Wheels {
-            wheels: [Wheel::at(0.0, 0.1, 0.0), Wheel::at(0.0, -0.1, 0.0)],
-            metres_per_count: [1.0; 2],
-        },
-    };
-    let per_count = drive
-        .metres_per_motor_count
-        .context("seed 004's motors have encoders")?;
-    let mut plant = Plant::new(cfg, Pose2::default(), 0.0, [0.0; 2]);
-    let mut pids = [SpeedPid::new(drive.speed_pid); 3];
-    let mut counts = plant.motor_counts();
-    // One control period: the speed each encoder showed over the last, then the loops' duty.
-    let mut control = |plant: &mut Plant, first: bool| {
-        let now = plant.motor_counts();
-        let measured = speeds_from_counts(counts, now, per_count, CONTROL_S);
-        counts = now;
-        let dt = if first { 0.0 } else { CONTROL_S };
-        let duty: [i16; 3] = core::array::from_fn(|i| {
-            (pids[i].update(wheels[i], measured[i], dt) * 1000.0).round() as i16
-        });
-        plant.set_duty(duty);
-        plant.advance(CONTROL_S, STEP_S);
-    };
-    control(&mut plant, true);
-    for _ in 1..(SETTLE_S / CONTROL_S).round() as usize {
-        control(&mut plant, false);
+    let mut robot = WheelDriver::new(omni, Pose2::default(), wheels)?;
+    for _ in 0..(SETTLE_S / CONTROL_S).round() as usize {
+        robot.step();
     }
-    let (s0, th0) = (plant.path_length(), plant.body().theta);
+    let (s0, th0) = (robot.plant.path_length(), robot.plant.body().theta);
     // In short steps, so the heading's change is unwrapped however fast it spins.
     let mut turned = 0.0;
     let mut th = th0;
     for _ in 0..(WINDOW_S / CONTROL_S).round() as usize {
-        control(&mut plant, false);
-        plant.take_edges();
-        let now = plant.body().theta;
+        robot.step();
+        let now = robot.plant.body().theta;
         turned += wrap_angle(now - th);
         th = now;
     }
-    Ok(((plant.path_length() - s0) / WINDOW_S, turned / WINDOW_S))
+    Ok((
+        (robot.plant.path_length() - s0) / WINDOW_S,
+        turned / WINDOW_S,
+    ))
 }
 
-fn arc_vs_line(d: f64) -> ArcVsLine {
+/// Seed 003's robot on the plant of `emulate` (seed 004's DC motors), its wheels held at
+/// given speeds by the master's speed loops fed by the motor encoders, one control period
+/// (10 ms) at a time.
+pub(crate) struct WheelDriver {
+    pub plant: Plant,
+    wheels: [f64; 3],
+    pids: [SpeedPid; 3],
+    counts: [u16; 3],
+    per_count: f64,
+    first: bool,
+}
+
+impl WheelDriver {
+    pub fn new(omni: &Omni3, start: Pose2, wheels: [f64; 3]) -> Result<Self> {
+        let drive = DriveSetup::from_geometry(&SEED_004_DRIVE).context("seed 004's drive")?;
+        let cfg = PlantConfig {
+            drive: robot_math::drive::DriveKinematics::Omni3(*omni),
+            motor: DcMotor::SEED_004,
+            motor_metres_per_count: drive.metres_per_motor_count,
+            // Not read here: two body-fixed wheels with metre-long counts, so the plant keeps
+            // next to no encoder edges.
+            sensors: MeasuringSensors::Wheels {
+                wheels: [Wheel::at(0.0, 0.1, 0.0), Wheel::at(0.0, -0.1, 0.0)],
+                metres_per_count: [1.0; 2],
+            },
+        };
+        let per_count = drive
+            .metres_per_motor_count
+            .context("seed 004's motors have encoders")?;
+        let plant = Plant::new(cfg, start, 0.0, [0.0; 2]);
+        let counts = plant.motor_counts();
+        Ok(WheelDriver {
+            plant,
+            wheels,
+            pids: [SpeedPid::new(drive.speed_pid); 3],
+            counts,
+            per_count,
+            first: true,
+        })
+    }
+
+    /// One control period: the speed each encoder showed over the last, the loops' duty, and
+    /// the plant run on for the period.
+    pub fn step(&mut self) {
+        let now = self.plant.motor_counts();
+        let measured = speeds_from_counts(self.counts, now, self.per_count, CONTROL_S);
+        self.counts = now;
+        let dt = if self.first { 0.0 } else { CONTROL_S };
+        self.first = false;
+        let duty: [i16; 3] = core::array::from_fn(|i| {
+            (self.pids[i].update(self.wheels[i], measured[i], dt) * 1000.0).round() as i16
+        });
+        self.plant.set_duty(duty);
+        self.plant.advance(CONTROL_S, STEP_S);
+        self.plant.take_edges();
+    }
+}
+
+fn arc_vs_line(omni: &Omni3) -> Result<ArcVsLine> {
+    let d = omni.d;
     // 3θ/4 = √3·sin(θ/2) (both times over R/v_max): bisect on (1, 3), where the sign changes.
     let f = |th: f64| 3f64.sqrt() * (th / 2.0).sin() - 0.75 * th;
     let (mut lo, mut hi) = (1.0, 3.0);
@@ -210,13 +246,17 @@ fn arc_vs_line(d: f64) -> ArcVsLine {
         }
     }
     let theta = 0.5 * (lo + hi);
-    ArcVsLine {
+    let driven = arc_vs_line::run(omni, &arc_vs_line::ANGLES_RAD)?;
+    let goals: Vec<_> = driven.iter().map(|r| r.goal.clone()).collect();
+    Ok(ArcVsLine {
         arc_radius_m: 4.0 * d,
         crossover_angle_rad: theta,
         crossover_chord_over_d: 8.0 * (theta / 2.0).sin(),
         paper_crossover_angle_rad: 1.831,
         paper_crossover_chord_over_d: 6.695,
-    }
+        measured_crossover_angle_rad: arc_vs_line::measured_crossover(&goals),
+        driven,
+    })
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@
 use anyhow::Result;
 use serde::Serialize;
 
+use super::FieldPath;
 use crate::sim::emulator::reference::ReferencePath;
 use crate::sim::emulator::{self, Motion, Options, Scenario};
 
@@ -52,15 +53,12 @@ pub struct Row {
     pub paper_hold_max_m: Option<f64>,
 }
 
-/// A path in the field, metres.
-pub type Path = Vec<(f64, f64)>;
-
 /// A sweep: the table, and each run's path for the plot.
 #[derive(Clone, Debug)]
 pub struct Sweep {
     pub rows: Vec<Row>,
     /// One per row: the emulated robot's path and the paper model's (empty for our law), m.
-    pub paths: Vec<(Path, Path)>,
+    pub paths: Vec<(FieldPath, FieldPath)>,
     /// The target's path, from start to stop, m.
     pub target: [(f64, f64); 2],
     pub target_stops_at_s: f64,
