@@ -108,7 +108,15 @@ fn every_scenario_file_runs_and_ends_holding_still() {
         assert_eq!(r.motor_switch_ons_after_arrival, Some(0), "{r:?}");
         assert_eq!(r.spi_frames_rejected + r.serial_frames_rejected, 0, "{r:?}");
         if let Motion::Track { .. } = s.motion {
-            assert!(r.tracking_max_m.unwrap() <= MAX_GOAL_M, "{r:?}");
+            // The velocity steps of the abrupt path peak the error at each step (measured
+            // 24.7 mm over 10 seeds, README); the seed's own paths are held to the goal.
+            let max = if s.name == "seed002-abrupt" {
+                2.0 * MAX_GOAL_M
+            } else {
+                MAX_GOAL_M
+            };
+            assert!(r.tracking_max_m.unwrap() <= max, "{r:?}");
+            assert!(r.tracking_rms_m.unwrap() <= RMS_GOAL_M, "{r:?}");
         }
         names.push(s.name);
     }
@@ -116,6 +124,7 @@ fn every_scenario_file_runs_and_ends_holding_still() {
     assert_eq!(
         names,
         [
+            "seed002-abrupt",
             "seed002-circle",
             "seed002-diagonal",
             "seed002-square",
