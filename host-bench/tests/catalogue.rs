@@ -29,6 +29,7 @@ fn catalogue_lengths_match_the_papers_and_ours() {
         ("seed001-straight-40m", 40.0),
         ("seed001-curve", 2.80),
         ("seed002-square", 4.0),
+        ("seed002-square-steps", 4.0),
         ("seed002-diagonal", SQRT_2),
         ("seed002-circle", PI),
         ("umbmark-cw", 16.0),

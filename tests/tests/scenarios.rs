@@ -108,9 +108,9 @@ fn every_scenario_file_runs_and_ends_holding_still() {
         assert_eq!(r.motor_switch_ons_after_arrival, Some(0), "{r:?}");
         assert_eq!(r.spi_frames_rejected + r.serial_frames_rejected, 0, "{r:?}");
         if let Motion::Track { .. } = s.motion {
-            // The velocity steps of the abrupt path peak the error at each step (measured
-            // 24.7 mm over 10 seeds, README); the seed's own paths are held to the goal.
-            let max = if s.name == "seed002-abrupt" {
+            // The velocity steps of the abrupt paths peak the error at each step (measured
+            // 24.7 and 15.2 mm over 10 seeds, README); the smooth paths are held to the goal.
+            let max = if ["seed002-abrupt", "seed002-square-steps"].contains(&s.name.as_str()) {
                 2.0 * MAX_GOAL_M
             } else {
                 MAX_GOAL_M
@@ -128,6 +128,7 @@ fn every_scenario_file_runs_and_ends_holding_still() {
             "seed002-circle",
             "seed002-diagonal",
             "seed002-square",
+            "seed002-square-steps",
             "seed004-pursuit",
             "umbmark-ccw",
             "umbmark-cw"

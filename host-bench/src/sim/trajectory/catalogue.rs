@@ -67,6 +67,14 @@ const CATALOGUE: &[Named] = &[
         drive: Drive::Holonomic,
     },
     Named {
+        name: "seed002-square-steps",
+        description: "1 m square counter-clockwise at a constant 0.4 m/s, heading kept at 0: \
+                      the velocity steps at the start, at each corner and at the end (0.5 s at rest \
+                      either side)",
+        paper: "seed 002",
+        drive: Drive::Holonomic,
+    },
+    Named {
         name: "seed002-diagonal",
         description: "diagonal of a 1 m square, to (1, 1) m, heading kept at 0",
         paper: "seed 002",
@@ -191,6 +199,23 @@ pub fn build(name: &str) -> Option<Box<dyn Trajectory>> {
                 })
                 .collect();
             Box::new(Sequence::new(parts))
+        }
+        "seed002-square-steps" => {
+            // Seed 002's square as its figures show it: no ramps, the velocity turns by 90°
+            // at each corner in one step (and steps from and to rest, half a second each side).
+            let (s, v) = (SEED002_SIDE_M, 0.4);
+            let side = s / v;
+            Box::new(Segments::new(
+                Pose2::default(),
+                vec![
+                    Segment::rest(0.5),
+                    Segment::constant(side, v, 0.0, 0.0),
+                    Segment::constant(side, 0.0, v, 0.0),
+                    Segment::constant(side, -v, 0.0, 0.0),
+                    Segment::constant(side, 0.0, -v, 0.0),
+                    Segment::rest(0.5),
+                ],
+            ))
         }
         "seed002-diagonal" => Box::new(PathMotion::cruise(
             Line::new(
