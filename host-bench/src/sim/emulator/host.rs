@@ -23,6 +23,10 @@ pub struct HostLog {
     pub frames_rejected: u64,
     pub frames_sent: u64,
     pub fingerprint_match: Option<bool>,
+    /// The master's last board info (hello or info reply).
+    pub board: Option<protocol::serial::BoardInfo>,
+    /// The robot uploaded to the slave, once the slave reported running it.
+    pub robot_uploaded: Option<u32>,
     pub last_telemetry: Option<Telemetry>,
     /// Virtual time (s) the motion started: the follow-target command was sent, or the
     /// tracked path's first sample.
@@ -40,6 +44,7 @@ pub async fn session(
     mut tx: impl Write,
     byte_time: Duration,
     scenario: Scenario,
+    upload: Option<robot_math::odometry::Layout>,
     algorithm: protocol::spi::OdometryAlgorithm,
     log: Rc<RefCell<HostLog>>,
 ) {
@@ -65,8 +70,14 @@ pub async fn session(
         if log.borrow().problem.is_some() {
             return;
         }
-        // One image serves every robot: this run's drive first.
+        // One image serves every robot: this run's drive first, then its encoders.
         send(&mut tx, &log, &HostToMaster::SetDrive(scenario.drive)).await;
+        if let Some(layout) = upload {
+            if let Err(e) = upload_robot(&mut tx, &log, &layout).await {
+                log.borrow_mut().problem = Some(e);
+                return;
+            }
+        }
         let (x, y, th) = scenario.start;
         send(
             &mut tx,
@@ -133,6 +144,58 @@ pub async fn session(
     join(reader, writer).await;
 }
 
+/// The robot's encoders to the slave, as `host-bench play` loads them on real boards
+/// (`serial::session::load_robot`): the parts through the master, then board info until the
+/// slave reports running them.
+async fn upload_robot(
+    tx: &mut impl Write,
+    log: &RefCell<HostLog>,
+    layout: &robot_math::odometry::Layout,
+) -> Result<(), String> {
+    use protocol::spi::SlaveCommand;
+    let (wheels, exact, header) = firmware_slave::robot_wire::to_parts(layout);
+    for j in 0..layout.encoders() {
+        send(
+            tx,
+            log,
+            &HostToMaster::Slave(SlaveCommand::RobotWheel(wheels[j])),
+        )
+        .await;
+        send(
+            tx,
+            log,
+            &HostToMaster::Slave(SlaveCommand::RobotExact(exact[j])),
+        )
+        .await;
+    }
+    send(
+        tx,
+        log,
+        &HostToMaster::Slave(SlaveCommand::RobotCommit(header)),
+    )
+    .await;
+    let deadline = Instant::now() + Duration::from_secs(1);
+    loop {
+        send(tx, log, &HostToMaster::Info).await;
+        Timer::after_millis(10).await;
+        if log
+            .borrow()
+            .board
+            .is_some_and(|b| b.robot == header.fingerprint)
+        {
+            log.borrow_mut().robot_uploaded = Some(header.fingerprint);
+            return Ok(());
+        }
+        if Instant::now() > deadline {
+            return Err(format!(
+                "the slave did not take the robot (fingerprint {:08x}) within 1 s: {:?}",
+                header.fingerprint,
+                log.borrow().board
+            ));
+        }
+    }
+}
+
 /// A track sample's frame length on the wire, bytes (typical; a byte or two either way moves
 /// the sample by under 0.2 ms at 115200 baud).
 const TRACK_FRAME_BYTES: u32 = 30;
@@ -181,11 +244,13 @@ async fn read_loop(mut rx: impl Read, log: Rc<RefCell<HostLog>>) {
                 Ok(msg) => {
                     l.frames_received += 1;
                     match msg {
-                        MasterToHost::HelloReply(protocol::serial::BoardInfo {
-                            protocol_version,
-                            schema_fingerprint,
-                            ..
-                        }) => {
+                        MasterToHost::HelloReply(info) => {
+                            l.board = Some(info);
+                            let protocol::serial::BoardInfo {
+                                protocol_version,
+                                schema_fingerprint,
+                                ..
+                            } = info;
                             let ok = protocol_version == PROTOCOL_VERSION
                                 && schema_fingerprint == protocol::schema_fingerprint();
                             l.fingerprint_match = Some(ok);

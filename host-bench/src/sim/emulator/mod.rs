@@ -143,7 +143,12 @@ pub struct Options {
     pub baud: u32,
     pub spi_clock_hz: u32,
     pub master: MasterConfig,
+    /// The slave board as it powers on (its compiled-in robot: seed 004's carriage).
     pub slave: SlaveConfig,
+    /// The robot's measuring encoders: what the plant has, and what the host uploads to the
+    /// slave over the protocol (serial → master → SPI, as `play` does on real boards) when
+    /// it is not the robot the slave powered on with.
+    pub robot_layout: Layout,
     pub faults: Faults,
     /// The odometry algorithm the host asks the slave to run.
     pub algorithm: protocol::spi::OdometryAlgorithm,
@@ -163,16 +168,12 @@ pub struct Faults {
 
 impl Options {
     /// The scenario's own settings (duration, pursuit period, encoder phases, faults, the
-    /// slave's sensors) on the boards' defaults.
+    /// robot's sensors) on the boards' power-on defaults.
     pub fn new(scenario: &Scenario) -> Self {
         let mut master = MasterConfig::DEFAULT;
         if let Some(p) = scenario.pursuit_period_s {
             master.pursuit.period_s = p;
         }
-        let slave = SlaveConfig {
-            layout: scenario.layout.clone(),
-            ..SlaveConfig::DEFAULT
-        };
         Options {
             duration: scenario.duration,
             seed: 1,
@@ -181,7 +182,8 @@ impl Options {
             baud: 115_200,
             spi_clock_hz: 2_250_000,
             master,
-            slave,
+            slave: SlaveConfig::DEFAULT,
+            robot_layout: scenario.layout.clone(),
             faults: scenario.faults.clone(),
             algorithm: protocol::spi::OdometryAlgorithm::Exact,
             encoder_phase: scenario.encoder_phase,
@@ -264,6 +266,10 @@ pub struct Summary {
     pub serial_frames_rejected: u64,
     pub protocol_version: u16,
     pub schema_fingerprint_match: bool,
+    /// This run's robot (its encoders' fingerprint, `robot_wire::layout_fingerprint`) when
+    /// the host uploaded it to the slave over the protocol and the slave reported running it;
+    /// null when the slave powered on with this run's robot.
+    pub robot_uploaded: Option<u32>,
     pub slave_updates: u64,
     /// Firmware task polls: a machine-independent measure of the work emulated.
     pub firmware_polls: u64,
@@ -284,8 +290,13 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     }
     let wall = WallInstant::now();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
-    let sensors = MeasuringSensors::from_layout(&opts.slave.layout)
-        .map_err(|e| anyhow::anyhow!("the slave's robot cannot be emulated: {e}"))?;
+    let sensors = MeasuringSensors::from_layout(&opts.robot_layout)
+        .map_err(|e| anyhow::anyhow!("the robot's encoders cannot be emulated: {e}"))?;
+    // One slave image serves every robot: the host uploads this run's, unless the slave
+    // powered on with it.
+    let fingerprint = firmware_slave::robot_wire::layout_fingerprint;
+    let upload = (fingerprint(&opts.robot_layout) != fingerprint(&opts.slave.layout))
+        .then(|| opts.robot_layout.clone());
     let drive = DriveSetup::from_geometry(&scenario.drive)
         .context("the scenario's drive geometry is impossible")?;
     let plant_cfg = PlantConfig {
@@ -359,6 +370,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             },
             byte_time,
             scenario.clone(),
+            upload,
             opts.algorithm,
             host_log.clone(),
         ),
@@ -495,6 +507,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         serial_frames_rejected: counters.serial_rejected as u64 + h.frames_rejected,
         protocol_version: protocol::PROTOCOL_VERSION,
         schema_fingerprint_match: h.fingerprint_match == Some(true),
+        robot_uploaded: h.robot_uploaded,
         slave_updates,
         firmware_polls: sim.polls(),
     };
