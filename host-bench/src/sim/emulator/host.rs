@@ -44,6 +44,7 @@ pub async fn session(
     mut tx: impl Write,
     byte_time: Duration,
     scenario: Scenario,
+    path_start_delay_s: f64,
     upload: Option<robot_math::odometry::Layout>,
     algorithm: protocol::spi::OdometryAlgorithm,
     log: Rc<RefCell<HostLog>>,
@@ -120,6 +121,10 @@ pub async fn session(
                         return;
                     }
                 };
+                Timer::after(Duration::from_micros(
+                    (path_start_delay_s * 1e6).round() as u64
+                ))
+                .await;
                 let t0 = Instant::now();
                 log.borrow_mut().follow_sent_at = Some(secs(t0));
                 let period = Duration::from_micros((sample_period_s * 1e6).round() as u64);
