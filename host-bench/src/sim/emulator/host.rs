@@ -38,17 +38,31 @@ pub struct HostLog {
 /// How often the host says it is still there (well inside the master's host timeout).
 const HEARTBEAT: Duration = Duration::from_millis(100);
 
-/// Run a host session for `scenario` over a serial link whose bytes take `byte_time` each.
+/// What the host does in a session.
+pub struct Plan {
+    pub scenario: Scenario,
+    /// How long after the setup a path starts, seconds (the host's clock against the
+    /// master's control period).
+    pub path_start_delay_s: f64,
+    /// The robot's encoders, when the slave did not power on with them.
+    pub upload: Option<robot_math::odometry::Layout>,
+    pub algorithm: protocol::spi::OdometryAlgorithm,
+}
+
+/// Run a host session for `plan` over a serial link whose bytes take `byte_time` each.
 pub async fn session(
     rx: impl Read,
     mut tx: impl Write,
     byte_time: Duration,
-    scenario: Scenario,
-    path_start_delay_s: f64,
-    upload: Option<robot_math::odometry::Layout>,
-    algorithm: protocol::spi::OdometryAlgorithm,
+    plan: Plan,
     log: Rc<RefCell<HostLog>>,
 ) {
+    let Plan {
+        scenario,
+        path_start_delay_s,
+        upload,
+        algorithm,
+    } = plan;
     let reader = read_loop(rx, log.clone());
     let writer = async {
         send(

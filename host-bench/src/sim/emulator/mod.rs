@@ -375,10 +375,12 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
                 byte_time,
             },
             byte_time,
-            scenario.clone(),
-            path_start_delay_s,
-            upload,
-            opts.algorithm,
+            host::Plan {
+                scenario: scenario.clone(),
+                path_start_delay_s,
+                upload,
+                algorithm: opts.algorithm,
+            },
             host_log.clone(),
         ),
     ));
