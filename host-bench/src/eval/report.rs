@@ -20,7 +20,7 @@ pub fn summary_text(s: &Summary) -> String {
     let ok = |b: bool| if b { "ok" } else { "MISMATCH" };
     let tracking = match (s.tracking_rms_m, s.tracking_max_m) {
         (Some(rms), Some(max)) => format!(
-            "tracking        tracked point vs the path: RMS {:.2} mm, max {:.2} mm (from 1 s on, {} samples)\n",
+            "tracking        tracked point vs the path: RMS {:.2} mm, max {:.2} mm (from 1 s on, {} physics steps)\n",
             rms * 1e3,
             max * 1e3,
             s.tracking_samples
@@ -28,7 +28,7 @@ pub fn summary_text(s: &Summary) -> String {
         _ => String::new(),
     };
     let text = format!(
-        "scenario        {scenario} (seed {seed}), robot {robot}, slave odometry `{algorithm}`\n\
+        "scenario        {scenario} (seed {seed}), robot {robot}{uploaded}, slave odometry `{algorithm}`\n\
          simulated       {sim:.3} s in {wall:.3} s wall ({speed:.0}x real time)\n\
          path length     {path:.3} m\n\
          slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
@@ -39,6 +39,9 @@ pub fn summary_text(s: &Summary) -> String {
          serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",
         scenario = s.scenario,
         robot = s.robot,
+        uploaded = s.robot_uploaded.map_or(String::new(), |fp| format!(
+            " (encoders uploaded to the slave, fingerprint {fp:08x})"
+        )),
         algorithm = s.algorithm,
         seed = s.seed,
         sim = s.sim_seconds,
