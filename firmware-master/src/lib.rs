@@ -48,8 +48,10 @@ pub struct MasterConfig {
     /// Standing inside those release bands of a stopped goal without moving a quarter of
     /// `arrive_tolerance` for this long also arrives, µs: motors that cannot close the last
     /// millimetres (stiction with no integrator, a wheel against an obstacle) are switched off
-    /// rather than left humming. Longer than the speed loops take to break a wheel away from
-    /// the goal's edge (about 1 s at 1.5 mm), so creeping in is not cut short.
+    /// rather than left humming. Creeping in must not be cut short: at the arrival band's edge
+    /// the speed loops' integrators take up to 1.9 s to break seed 004's wheels away (measured:
+    /// 1.33 s at 1.5 mm, 1.82-1.86 s at 1.02-1.05 mm), so 5 s leaves a motor with 2.5 times
+    /// that friction room.
     pub hold_settle_us: u32,
     pub control_period_us: u32,
     pub poll_period_us: u32,
@@ -101,7 +103,7 @@ impl MasterConfig {
         arrive_heading_tolerance: 0.02,
         hold_release: 0.005,
         hold_heading_release: 0.06,
-        hold_settle_us: 2_000_000,
+        hold_settle_us: 5_000_000,
         control_period_us: 10_000,
         poll_period_us: 2_000,
         telemetry_period_us: 20_000,

@@ -53,6 +53,26 @@ pub fn to_parts(
     (wheels, exact, header)
 }
 
+/// The commands that upload `layout` to a slave, in order (each encoder's two parts, then the
+/// commit), and the fingerprint the slave reports once it runs it. The host sends them through
+/// the master (`HostToMaster::Slave`), on real boards and in the emulator alike.
+pub fn upload_commands(
+    layout: &Layout,
+) -> (impl Iterator<Item = protocol::spi::SlaveCommand>, u32) {
+    use protocol::spi::SlaveCommand;
+    let (wheels, exact, header) = to_parts(layout);
+    let parts = (0..layout.encoders()).flat_map(move |j| {
+        [
+            SlaveCommand::RobotWheel(wheels[j]),
+            SlaveCommand::RobotExact(exact[j]),
+        ]
+    });
+    (
+        parts.chain(core::iter::once(SlaveCommand::RobotCommit(header))),
+        header.fingerprint,
+    )
+}
+
 /// The fingerprint of a layout (what the slave reports once it runs it).
 pub fn layout_fingerprint(layout: &Layout) -> u32 {
     to_parts(layout).2.fingerprint

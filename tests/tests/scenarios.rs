@@ -50,12 +50,10 @@ fn seed_002s_paths_are_tracked_within_the_goals_with_one_set_of_gains() {
                 rms <= RMS_GOAL_M && max <= MAX_GOAL_M,
                 "{file} seed {seed}: {r:?}"
             );
-            // Not a vacuous score: ~100 samples a second after the first, less the ~40 ms the
-            // host spends uploading the robot before the path starts.
-            assert!(
-                r.tracking_samples as f64 >= 100.0 * (s.duration - 1.0 - 0.1),
-                "{r:?}"
-            );
+            // Not a vacuous score: every second after the first, less what the host spends
+            // before the path starts (the robot upload, ~40 ms; the setup, 20 ms; up to a
+            // control period: 82 ms on the square, seed 1).
+            assert!(r.tracking_seconds >= s.duration - 1.0 - 0.1, "{r:?}");
             assert!(r.arrived && r.distance_to_goal_m < 0.005, "{file}: {r:?}");
             assert_eq!(r.motor_switch_ons_after_arrival, Some(0), "{file}: {r:?}");
             assert!(

@@ -301,6 +301,8 @@ impl Controller {
             return;
         }
         self.holding = false;
+        // Standing still counts towards settling only on the goal it stands for.
+        self.still = None;
         self.euler = None;
         self.status &= !(status::ARRIVED | status::COMMAND_REJECTED);
         self.status |= status::FOLLOWING;
@@ -346,6 +348,7 @@ impl Controller {
     fn stop_following(&mut self, why: u16) {
         self.goal = None;
         self.holding = false;
+        self.still = None;
         self.euler = None;
         self.status &= !(status::FOLLOWING | status::ARRIVED);
         self.status |= why;

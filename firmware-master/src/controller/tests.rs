@@ -136,7 +136,7 @@ fn stuck_just_outside_the_arrival_band_it_settles_and_switches_off() {
         }
         assert!(matches!(at(&mut c, ms, x), Drive::Duty(_)), "{ms} ms");
     }
-    // Stuck 2.8 mm short (inside the 5 mm release band): driven for the settle time, then off.
+    // Stuck 1.6 mm short (inside the 5 mm release band): driven for the settle time, then off.
     let stuck = x;
     let mut ms = 4_010;
     while ms < 4_000 + settle_ms - 10 {
@@ -164,6 +164,44 @@ fn stuck_just_outside_the_arrival_band_it_settles_and_switches_off() {
         c.on_host_message(t(ms), HostToMaster::Heartbeat);
         assert!(matches!(c.control(t(ms)), Drive::Duty(_)), "{ms} ms");
     }
+}
+
+/// Standing still at one goal does not count towards settling at the next: a standing goal
+/// 3 mm on (inside the release band) is driven to, not declared reached at once.
+#[test]
+fn a_new_goal_starts_its_settle_time_afresh() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    let settle_ms = MasterConfig::DEFAULT.hold_settle_us as u64 / 1000;
+    let mut seq = 0;
+    let mut at = |c: &mut Controller, ms: u64, x_um: i32| {
+        seq += 1;
+        c.on_slave_frame(t(ms), Ok(slave_frame(seq, 0, x_um)));
+        c.on_host_message(t(ms), HostToMaster::Heartbeat);
+        c.control(t(ms))
+    };
+    // Arrived and standing at 1.000 m for longer than the settle time.
+    let mut ms = 10;
+    while ms < settle_ms + 1_000 {
+        assert_eq!(at(&mut c, ms, 1_000_000), Drive::Stop, "{ms} ms");
+        ms += 10;
+    }
+    let next = HostToMaster::FollowTarget(MovingTarget {
+        from: Point {
+            x_um: 1_003_000,
+            y_um: 0,
+        },
+        to: Point {
+            x_um: 1_003_000,
+            y_um: 0,
+        },
+        target_speed_um_s: 0,
+        robot_speed_um_s: 500_000,
+        heading: BinaryAngle(0),
+    });
+    c.on_host_message(t(ms), next);
+    assert!(matches!(at(&mut c, ms + 10, 1_000_000), Drive::Duty(_)));
+    assert_eq!(c.status() & status::ARRIVED, 0);
 }
 
 #[test]

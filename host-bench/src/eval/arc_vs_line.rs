@@ -111,7 +111,7 @@ pub fn measured_crossover(goals: &[Goal]) -> Option<f64> {
 
 /// From rest at `start`, wheels held at `wheels`, until the reference point crosses the line
 /// through `b` across `direction`: (time, distance from `b` there, the path). Gives up at
-/// three times the model's time (an error: the drive never got there).
+/// three times the model's time and a second (an error: the drive never got there).
 fn drive_to(
     omni: &Omni3,
     start: Pose2,
@@ -120,6 +120,10 @@ fn drive_to(
     direction: f64,
     model_s: f64,
 ) -> Result<(f64, f64, FieldPath)> {
+    anyhow::ensure!(
+        model_s.is_finite() && model_s > 0.0,
+        "no time to reach B in the model ({model_s} s): zero speed"
+    );
     let mut robot = WheelDriver::new(omni, start, wheels)?;
     let (ux, uy) = (direction.cos(), direction.sin());
     // Signed distance past B's line, and the point.
@@ -160,7 +164,7 @@ mod tests {
         for g in &goals {
             // Both runs pass through B (the wheels spin up together, so the arc keeps its
             // radius and the line its direction) ...
-            assert!(g.line_miss_m < 0.01 && g.arc_miss_m < 0.02, "{g:?}");
+            assert!(g.line_miss_m < 1e-4 && g.arc_miss_m < 1e-4, "{g:?}");
             // ... and take the model's time plus the motors' spin-up (58 ms time constant).
             for (model, measured) in [
                 (g.line_model_s, g.line_measured_s),
@@ -172,6 +176,9 @@ mod tests {
             // The model's chord: 8d·sin(θ/2).
             assert!((g.chord_m - 8.0 * 0.22 * (g.angle_rad / 2.0).sin()).abs() < 1e-9);
         }
+        // The spin-up is the same on both paths (every wheel driven in proportion), so the
+        // measured crossover is the model's by construction: this checks the driving, not the
+        // crossover's value.
         assert!(goals[0].arc_gain_measured_s > 0.0, "{:?}", goals[0]);
         assert!(goals[6].arc_gain_measured_s < 0.0, "{:?}", goals[6]);
         let x = measured_crossover(&goals).expect("the sign changes once");

@@ -75,17 +75,12 @@ struct Sample {
 /// target (`duration_s` of it).
 pub fn run(periods_s: &[f64], duration_s: f64) -> Result<Sweep> {
     let scenario = Scenario::seed004_pursuit();
-    let stops_at = ReferencePath::new(&scenario.motion)?.duration();
-    let Motion::Pursue {
-        target_from,
-        target_to,
-        target_speed,
-        robot_speed,
-        ..
-    } = scenario.motion
-    else {
+    let target = ReferencePath::new(&scenario.motion)?;
+    let stops_at = target.duration();
+    let Motion::Pursue { robot_speed, .. } = scenario.motion else {
         anyhow::bail!("the built-in scenario is a pursuit");
     };
+    let target_line = [target.at(0.0).position, target.at(stops_at).position];
     let mut rows = Vec::new();
     let mut paths = Vec::new();
     for &tau in periods_s {
@@ -104,15 +99,8 @@ pub fn run(periods_s: &[f64], duration_s: f64) -> Result<Sweep> {
             .collect();
         let [(jitter, tracking_rms_m, _), (hold_jitter, hold_rms_m, hold_max_m)] =
             score_chase_and_hold(&emulated, stops_at);
-        let paper = (tau > 0.0).then(|| {
-            paper_euler(
-                tau,
-                duration_s,
-                scenario.start,
-                (target_from, target_to, target_speed),
-                robot_speed,
-            )
-        });
+        let paper =
+            (tau > 0.0).then(|| paper_euler(tau, duration_s, scenario.start, &target, robot_speed));
         let paper_scores = paper.as_ref().map(|p| score_chase_and_hold(p, stops_at));
         rows.push(Row {
             tau_s: tau,
@@ -140,7 +128,7 @@ pub fn run(periods_s: &[f64], duration_s: f64) -> Result<Sweep> {
     Ok(Sweep {
         rows,
         paths,
-        target: [target_from, target_to],
+        target: target_line,
         target_stops_at_s: stops_at,
     })
 }
@@ -151,14 +139,10 @@ fn paper_euler(
     tau: f64,
     duration_s: f64,
     start: (f64, f64, f64),
-    (from, to, speed): ((f64, f64), (f64, f64), f64),
+    target: &ReferencePath,
     robot_speed: f64,
 ) -> Vec<Sample> {
-    let length = (to.0 - from.0).hypot(to.1 - from.1);
-    let target = |t: f64| {
-        let s = (speed * t).min(length) / length.max(1e-12);
-        (from.0 + s * (to.0 - from.0), from.1 + s * (to.1 - from.1))
-    };
+    let target = |t: f64| target.at(t).position;
     let step = robot_speed * tau;
     let mut at = (start.0, start.1 + step);
     let mut out = vec![

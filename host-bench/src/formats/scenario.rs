@@ -199,7 +199,14 @@ impl TomlFile<'_> {
 
         let mut pursuit_period_s = None;
         if let Some(c) = &raw.controller {
-            let gain = |v: &Option<Spanned<f64>>, key: &str, positive: bool| -> Res<Option<i32>> {
+            // Each gain in [0, 1000] (> 0 where `positive`), as the whole number of `unit`s it
+            // travels in: thousandths for the law, millionths for the speed loops (a small kd
+            // is a real setting). 1000 of them fits both wire types.
+            let gain = |v: &Option<Spanned<f64>>,
+                        key: &str,
+                        positive: bool,
+                        unit: f64|
+             -> Res<Option<f64>> {
                 let Some(v) = v else { return Ok(None) };
                 let key = format!("controller.{key}");
                 let x = if positive {
@@ -210,44 +217,36 @@ impl TomlFile<'_> {
                 if x > 1000.0 {
                     return Err(self.at(v.span(), &key, format!("must be at most 1000, got {x}")));
                 }
-                Ok(Some((x * 1000.0).round() as i32))
+                Ok(Some((x / unit).round()))
             };
-            if let Some(k) = gain(&c.k_forward, "k_forward", true)? {
+            let milli = |v, key, positive| gain(v, key, positive, 1e-3);
+            let micro = |v, key| gain(v, key, false, 1e-6);
+            if let Some(k) = milli(&c.k_forward, "k_forward", true)? {
                 drive.k_forward_milli = k as u32;
             }
-            if let Some(k) = gain(&c.k_lateral, "k_lateral", true)? {
+            if let Some(k) = milli(&c.k_lateral, "k_lateral", true)? {
                 drive.k_lateral_milli = k as u32;
             }
-            if let Some(k) = gain(&c.ff_forward, "ff_forward", false)? {
-                drive.ff_forward_milli = k;
+            if let Some(k) = milli(&c.ff_forward, "ff_forward", false)? {
+                drive.ff_forward_milli = k as i32;
             }
-            if let Some(k) = gain(&c.ff_lateral, "ff_lateral", false)? {
-                drive.ff_lateral_milli = k;
+            if let Some(k) = milli(&c.ff_lateral, "ff_lateral", false)? {
+                drive.ff_lateral_milli = k as i32;
             }
-            if let Some(k) = gain(&c.diff_forward, "diff_forward", false)? {
-                drive.diff_forward_milli = k;
+            if let Some(k) = milli(&c.diff_forward, "diff_forward", false)? {
+                drive.diff_forward_milli = k as i32;
             }
-            if let Some(k) = gain(&c.diff_lateral, "diff_lateral", false)? {
-                drive.diff_lateral_milli = k;
+            if let Some(k) = milli(&c.diff_lateral, "diff_lateral", false)? {
+                drive.diff_lateral_milli = k as i32;
             }
-            // The speed loops' gains travel in millionths (a small kd is a real setting).
-            let speed_gain = |v: &Option<Spanned<f64>>, key: &str| -> Res<Option<u32>> {
-                let Some(v) = v else { return Ok(None) };
-                let key = format!("controller.{key}");
-                let x = self.non_negative(v, &key)?;
-                if x > 1000.0 {
-                    return Err(self.at(v.span(), &key, format!("must be at most 1000, got {x}")));
-                }
-                Ok(Some((x * 1e6).round() as u32))
-            };
-            if let Some(k) = speed_gain(&c.speed_kp, "speed_kp")? {
-                drive.speed_kp_micro = k;
+            if let Some(k) = micro(&c.speed_kp, "speed_kp")? {
+                drive.speed_kp_micro = k as u32;
             }
-            if let Some(k) = speed_gain(&c.speed_ki, "speed_ki")? {
-                drive.speed_ki_micro = k;
+            if let Some(k) = micro(&c.speed_ki, "speed_ki")? {
+                drive.speed_ki_micro = k as u32;
             }
-            if let Some(k) = speed_gain(&c.speed_kd, "speed_kd")? {
-                drive.speed_kd_micro = k;
+            if let Some(k) = micro(&c.speed_kd, "speed_kd")? {
+                drive.speed_kd_micro = k as u32;
             }
             if let Some(p) = &c.pursuit_period_s {
                 pursuit_period_s = Some(self.non_negative(p, "controller.pursuit_period_s")?);

@@ -111,13 +111,10 @@ fn to_slave(link: &mut Link, c: SlaveCommand) -> Result<()> {
 
 /// Load `layout` into the slave; returns its fingerprint once the slave reports running it.
 pub fn load_robot(link: &mut Link, layout: &Layout) -> Result<u32> {
-    let (wheels, exact, header) = firmware_slave::robot_wire::to_parts(layout);
-    for j in 0..layout.encoders() {
-        to_slave(link, SlaveCommand::RobotWheel(wheels[j]))?;
-        to_slave(link, SlaveCommand::RobotExact(exact[j]))?;
+    let (commands, fp) = firmware_slave::robot_wire::upload_commands(layout);
+    for c in commands {
+        to_slave(link, c)?;
     }
-    to_slave(link, SlaveCommand::RobotCommit(header))?;
-    let fp = header.fingerprint;
     confirm(
         link,
         &format!("the slave did not take the robot (fingerprint {fp:08x})"),

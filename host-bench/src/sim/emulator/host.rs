@@ -171,44 +171,22 @@ async fn upload_robot(
     log: &RefCell<HostLog>,
     layout: &robot_math::odometry::Layout,
 ) -> Result<(), String> {
-    use protocol::spi::SlaveCommand;
-    let (wheels, exact, header) = firmware_slave::robot_wire::to_parts(layout);
-    for j in 0..layout.encoders() {
-        send(
-            tx,
-            log,
-            &HostToMaster::Slave(SlaveCommand::RobotWheel(wheels[j])),
-        )
-        .await;
-        send(
-            tx,
-            log,
-            &HostToMaster::Slave(SlaveCommand::RobotExact(exact[j])),
-        )
-        .await;
+    let (commands, fingerprint) = firmware_slave::robot_wire::upload_commands(layout);
+    for c in commands {
+        send(tx, log, &HostToMaster::Slave(c)).await;
     }
-    send(
-        tx,
-        log,
-        &HostToMaster::Slave(SlaveCommand::RobotCommit(header)),
-    )
-    .await;
     let deadline = Instant::now() + Duration::from_secs(1);
     loop {
         send(tx, log, &HostToMaster::Info).await;
         Timer::after_millis(10).await;
-        if log
-            .borrow()
-            .board
-            .is_some_and(|b| b.robot == header.fingerprint)
-        {
-            log.borrow_mut().robot_uploaded = Some(header.fingerprint);
+        if log.borrow().board.is_some_and(|b| b.robot == fingerprint) {
+            log.borrow_mut().robot_uploaded = Some(fingerprint);
             return Ok(());
         }
         if Instant::now() > deadline {
             return Err(format!(
                 "the slave did not take the robot (fingerprint {:08x}) within 1 s: {:?}",
-                header.fingerprint,
+                fingerprint,
                 log.borrow().board
             ));
         }

@@ -250,6 +250,8 @@ pub struct Summary {
     pub tracking_rms_m: Option<f64>,
     pub tracking_max_m: Option<f64>,
     pub tracking_samples: u64,
+    /// Seconds of the run the tracking error covers.
+    pub tracking_seconds: f64,
     pub arrived: bool,
     /// Times the motors went from standing to driven over the whole run, and after the master
     /// first reported arrival once the target or path had stopped for good (`None` if it
@@ -512,6 +514,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             .then(|| (tracking_error.0 / tracking_error.3).sqrt()),
         tracking_max_m: (tracking_error.1 > 0).then_some(tracking_error.2),
         tracking_samples: tracking_error.1,
+        tracking_seconds: tracking_error.3,
         arrived: status & protocol::serial::status::ARRIVED != 0,
         motor_switch_ons: plant.motor_switch_ons(),
         motor_switch_ons_after_arrival: at_arrival.map(|(on, _)| plant.motor_switch_ons() - on),
