@@ -252,6 +252,9 @@ pub enum FrameError {
     Crc,
     /// The CRC matched but the payload is not a valid message (or has trailing bytes).
     Decode,
+    /// The message decodes but the frame is not how it encodes (an over-long number, a COBS
+    /// form the encoder never makes): refused, so one message has exactly one frame.
+    NonCanonical,
 }
 
 /// Encode `msg` as one delimited frame into `out`; returns the bytes to send.
@@ -293,7 +296,10 @@ impl FrameDecoder {
 
     /// Feed one byte. Returns `Some` when a delimiter closes a frame: the message, or why it
     /// was dropped. Empty frames (two delimiters in a row, used to flush a line) yield `None`.
-    pub fn push<T: DeserializeOwned>(&mut self, byte: u8) -> Option<Result<T, FrameError>> {
+    pub fn push<T: DeserializeOwned + Serialize>(
+        &mut self,
+        byte: u8,
+    ) -> Option<Result<T, FrameError>> {
         if byte != 0 {
             if self.discarding {
                 return None;
@@ -315,8 +321,14 @@ impl FrameDecoder {
     }
 }
 
-/// Decode one frame's bytes (without the delimiter), in place.
-pub fn decode_frame<T: DeserializeOwned>(frame: &mut [u8]) -> Result<T, FrameError> {
+/// Decode one frame's bytes (without the delimiter), in place. Only the frame [`encode`] makes
+/// of the message decodes (checked by encoding it again).
+pub fn decode_frame<T: DeserializeOwned + Serialize>(frame: &mut [u8]) -> Result<T, FrameError> {
+    let mut received = [0u8; MAX_FRAME];
+    let received = received
+        .get_mut(..frame.len())
+        .ok_or(FrameError::Overflow)?;
+    received.copy_from_slice(frame);
     let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Cobs)?;
     if n < 4 {
         return Err(FrameError::Short);
@@ -326,8 +338,14 @@ pub fn decode_frame<T: DeserializeOwned>(frame: &mut [u8]) -> Result<T, FrameErr
     if CRC.checksum(payload) != crc {
         return Err(FrameError::Crc);
     }
-    match postcard::take_from_bytes::<T>(payload) {
-        Ok((msg, [])) => Ok(msg),
-        _ => Err(FrameError::Decode),
+    let msg = match postcard::take_from_bytes::<T>(payload) {
+        Ok((msg, [])) => msg,
+        _ => return Err(FrameError::Decode),
+    };
+    let mut again = [0u8; MAX_FRAME + 1];
+    match encode(&msg, &mut again) {
+        // The encoding ends with its delimiter, which `frame` does not hold.
+        Ok(e) if e[..e.len() - 1] == *received => Ok(msg),
+        _ => Err(FrameError::NonCanonical),
     }
 }

@@ -2,9 +2,17 @@
 //!
 //! Every transaction is full duplex and moves exactly [`SPI_FRAME_LEN`] bytes each way: the
 //! master sends a [`MasterFrame`] while the slave sends the [`SlaveFrame`] it armed before the
-//! transaction. Layout of both: `postcard(frame)`, zero padding, CRC-16/IBM-3740 (big-endian)
-//! over everything before it in the last two bytes. Idle lines (all `0xFF` or all `0x00`) and
-//! torn frames fail the CRC, are counted, and are never acted on.
+//! transaction. Layout of both: a kind byte ([`SpiFrame::KIND`]: 0xA5 master, 0x5A slave),
+//! `postcard(frame)`, zero padding, and CRC-32/ISO-HDLC (little-endian) over everything before
+//! it in the last four bytes.
+//!
+//! Nothing a dead or stuck line produces can pass: the CRC's non-zero start and final XOR mean
+//! an all-zero frame does not check out as it did with the old CRC-16 (`FF FF 00 … 00` passed),
+//! no run of one byte value does (a floating MISO reads 0xFF, a browned-out slave 0x00; tested
+//! for all 256), and the kind byte is neither; a frame sent back on the wrong line (MOSI looped
+//! to MISO) has the other kind. Decoding is
+//! strict: the padding must be zeros and the payload must be exactly what encoding the decoded
+//! frame gives, so one frame has one byte string (postcard alone takes over-long varints).
 
 use crate::{Bytes, Pose};
 use postcard::experimental::max_size::MaxSize;
@@ -13,10 +21,13 @@ use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
 /// Bytes per SPI transaction, each way (455 µs at the 2.25 MHz clock).
 pub const SPI_FRAME_LEN: usize = 128;
-/// Bytes available to the postcard payload.
-pub const SPI_PAYLOAD_LEN: usize = SPI_FRAME_LEN - 2;
+/// The check at the end of every frame, bytes.
+pub const SPI_CHECK_LEN: usize = 4;
+/// Bytes available to the postcard payload (after the kind byte, before the check).
+pub const SPI_PAYLOAD_LEN: usize = SPI_FRAME_LEN - 1 - SPI_CHECK_LEN;
 
-const CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
+/// The same CRC-32 as the serial frames and the fingerprints (one table in each image).
+const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// Incremental encoders a slave can be given (the board counts two in hardware; played
 /// streams may carry up to this many, e.g. seed 000's triangle).
@@ -223,30 +234,66 @@ pub enum SlaveCommand {
 const _: () = assert!(SlaveFrame::POSTCARD_MAX_SIZE <= SPI_PAYLOAD_LEN);
 const _: () = assert!(MasterFrame::POSTCARD_MAX_SIZE <= SPI_PAYLOAD_LEN);
 
+/// A frame type that travels over SPI, with the kind byte that opens it (neither 0x00 nor 0xFF,
+/// and each the other's complement, so a frame on the wrong line is told apart).
+pub trait SpiFrame: Serialize + DeserializeOwned + MaxSize + PartialEq {
+    const KIND: u8;
+}
+
+impl SpiFrame for MasterFrame {
+    const KIND: u8 = 0xA5;
+}
+
+impl SpiFrame for SlaveFrame {
+    const KIND: u8 = 0x5A;
+}
+
 /// Why a received SPI frame was dropped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SpiFrameError {
+    /// The check failed: a torn, corrupted, idle or stuck frame.
     Crc,
+    /// The check passed but the kind byte is not this frame type's.
+    Kind,
+    /// The payload is not a frame of this type.
     Decode,
+    /// The payload decodes but is not how the frame encodes (non-zero padding, an over-long
+    /// number): refused, so that one frame has exactly one byte string.
+    NonCanonical,
 }
 
 /// Encode a frame into its fixed-size wire form.
-pub fn encode<T: Serialize + MaxSize>(frame: &T) -> [u8; SPI_FRAME_LEN] {
+pub fn encode<T: SpiFrame>(frame: &T) -> [u8; SPI_FRAME_LEN] {
     let mut out = [0u8; SPI_FRAME_LEN];
+    out[0] = T::KIND;
     // Cannot fail: every frame type's maximum size is checked against the payload at compile
-    // time above; a failure would leave a zero payload, which then fails its CRC downstream.
-    let _ = postcard::to_slice(frame, &mut out[..SPI_PAYLOAD_LEN]);
-    let crc = CRC.checksum(&out[..SPI_PAYLOAD_LEN]);
-    out[SPI_PAYLOAD_LEN..].copy_from_slice(&crc.to_be_bytes());
+    // time above; a failure would leave a zero payload, which then fails to decode.
+    let _ = postcard::to_slice(frame, &mut out[1..1 + SPI_PAYLOAD_LEN]);
+    let crc = CRC.checksum(&out[..SPI_FRAME_LEN - SPI_CHECK_LEN]);
+    out[SPI_FRAME_LEN - SPI_CHECK_LEN..].copy_from_slice(&crc.to_le_bytes());
     out
 }
 
 /// Check and decode a received fixed-size frame.
-pub fn decode<T: DeserializeOwned>(bytes: &[u8; SPI_FRAME_LEN]) -> Result<T, SpiFrameError> {
-    let crc = u16::from_be_bytes([bytes[SPI_PAYLOAD_LEN], bytes[SPI_PAYLOAD_LEN + 1]]);
-    if CRC.checksum(&bytes[..SPI_PAYLOAD_LEN]) != crc {
+pub fn decode<T: SpiFrame>(bytes: &[u8; SPI_FRAME_LEN]) -> Result<T, SpiFrameError> {
+    let (body, check) = bytes.split_at(SPI_FRAME_LEN - SPI_CHECK_LEN);
+    if CRC.checksum(body).to_le_bytes() != *check {
         return Err(SpiFrameError::Crc);
     }
-    postcard::from_bytes(&bytes[..SPI_PAYLOAD_LEN]).map_err(|_| SpiFrameError::Decode)
+    if body[0] != T::KIND {
+        return Err(SpiFrameError::Kind);
+    }
+    let payload = &body[1..];
+    let (frame, rest) =
+        postcard::take_from_bytes::<T>(payload).map_err(|_| SpiFrameError::Decode)?;
+    let used = payload.len() - rest.len();
+    // Canonical: zero padding, and the payload is what the frame encodes to.
+    let mut again = [0u8; SPI_PAYLOAD_LEN];
+    let canonical = rest.iter().all(|&b| b == 0)
+        && postcard::to_slice(&frame, &mut again).is_ok_and(|e| *e == payload[..used]);
+    if !canonical {
+        return Err(SpiFrameError::NonCanonical);
+    }
+    Ok(frame)
 }

@@ -233,20 +233,99 @@ proptest! {
     }
 }
 
+/// What a dead, idle or stuck line shows never passes as a frame: every run of one byte value,
+/// and every frame of one value switching to another once (`FF FF 00 … 00` passed the old
+/// CRC-16, whose zero final XOR let an all-zero tail check out).
 #[test]
-fn idle_spi_lines_are_rejected() {
-    for fill in [0x00u8, 0xff] {
-        let bytes = [fill; spi::SPI_FRAME_LEN];
-        assert_eq!(
-            spi::decode::<SlaveFrame>(&bytes),
-            Err(SpiFrameError::Crc),
-            "{fill:#x}"
-        );
-        assert_eq!(
-            spi::decode::<MasterFrame>(&bytes),
-            Err(SpiFrameError::Crc),
-            "{fill:#x}"
-        );
+fn no_stuck_or_dead_line_pattern_passes() {
+    let mut patterns = Vec::new();
+    for fill in 0..=255u8 {
+        patterns.push([fill; spi::SPI_FRAME_LEN]);
+    }
+    for (a, b) in [(0xffu8, 0x00u8), (0x00, 0xff)] {
+        for k in 0..=spi::SPI_FRAME_LEN {
+            let mut p = [b; spi::SPI_FRAME_LEN];
+            p[..k].fill(a);
+            patterns.push(p);
+        }
+    }
+    for p in &patterns {
+        assert!(spi::decode::<SlaveFrame>(p).is_err(), "{p:02x?}");
+        assert!(spi::decode::<MasterFrame>(p).is_err(), "{p:02x?}");
+    }
+}
+
+/// A frame on the wrong line (MOSI looped back to MISO) is told apart by its kind byte.
+#[test]
+fn a_frame_of_the_other_kind_is_refused() {
+    let m = spi::encode(&MasterFrame::default());
+    let s = spi::encode(&SlaveFrame::default());
+    assert_eq!(spi::decode::<SlaveFrame>(&m), Err(SpiFrameError::Kind));
+    assert_eq!(spi::decode::<MasterFrame>(&s), Err(SpiFrameError::Kind));
+}
+
+/// `body` (kind byte and payload, zero-padded) made into a frame whose check passes.
+fn with_check(body: &[u8]) -> [u8; spi::SPI_FRAME_LEN] {
+    const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+    let n = spi::SPI_FRAME_LEN - spi::SPI_CHECK_LEN;
+    let mut out = [0u8; spi::SPI_FRAME_LEN];
+    out[..body.len().min(n)].copy_from_slice(&body[..body.len().min(n)]);
+    let crc = CRC.checksum(&out[..n]);
+    out[n..].copy_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// Only the one encoding of a frame decodes: a non-zero padding byte or an over-long number
+/// (postcard alone reads `0x87 0x00` as 7) is refused even with a good check.
+#[test]
+fn only_canonical_encodings_decode() {
+    let f = MasterFrame {
+        seq: 7,
+        ..MasterFrame::default()
+    };
+    let good = spi::encode(&f);
+    assert_eq!(spi::decode::<MasterFrame>(&good), Ok(f));
+    let n = spi::SPI_FRAME_LEN - spi::SPI_CHECK_LEN;
+    let mut padded = good;
+    padded[n - 1] = 1;
+    let padded = with_check(&padded[..n]);
+    assert_eq!(
+        spi::decode::<MasterFrame>(&padded),
+        Err(SpiFrameError::NonCanonical)
+    );
+    // The payload opens with `seq` as a varint: 7 is `07`; `87 00` is 7 again, over-long.
+    assert_eq!(good[1], 0x07);
+    let mut long = vec![good[0], 0x87, 0x00];
+    long.extend_from_slice(&good[2..n - 1]);
+    assert_eq!(
+        spi::decode::<MasterFrame>(&with_check(&long)),
+        Err(SpiFrameError::NonCanonical)
+    );
+}
+
+proptest! {
+    /// Whatever bytes pass the check and decode, encoding the frame gives those bytes back:
+    /// good frames with one or two payload bytes changed and the check made good again (most
+    /// still decode, as other values or over-long forms).
+    #[test]
+    fn a_decoded_frame_encodes_to_the_bytes_it_came_from(
+        s in arb_slave_frame(),
+        m in arb_master_frame(),
+        edits in prop::collection::vec((1usize..(1 + spi::SPI_PAYLOAD_LEN), any::<u8>()), 1..3),
+    ) {
+        let n = spi::SPI_FRAME_LEN - spi::SPI_CHECK_LEN;
+        for mut bytes in [spi::encode(&s), spi::encode(&m)] {
+            for &(at, v) in &edits {
+                bytes[at] = v;
+            }
+            let bytes = with_check(&bytes[..n]);
+            if let Ok(f) = spi::decode::<SlaveFrame>(&bytes) {
+                prop_assert_eq!(spi::encode(&f), bytes);
+            }
+            if let Ok(f) = spi::decode::<MasterFrame>(&bytes) {
+                prop_assert_eq!(spi::encode(&f), bytes);
+            }
+        }
     }
 }
 
@@ -298,4 +377,55 @@ fn valid_crc_with_trailing_bytes_is_a_decode_error() {
         serial::decode_frame::<HostToMaster>(&mut enc[..n]),
         Err(FrameError::Decode)
     );
+}
+
+/// A serial frame (without its delimiter) around `payload` with a good CRC and COBS.
+fn serial_frame(payload: &[u8]) -> Vec<u8> {
+    const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+    let mut raw = payload.to_vec();
+    raw.extend_from_slice(&CRC.checksum(payload).to_le_bytes());
+    let mut out = vec![0u8; cobs::max_encoding_length(raw.len())];
+    let n = cobs::encode(&raw, &mut out);
+    out.truncate(n);
+    out
+}
+
+/// Serial frames too: a message has one frame. `Hello { protocol_version: 5 }` is `00 05`;
+/// `00 85 00` is the same message with an over-long number and a good CRC.
+#[test]
+fn only_canonical_serial_frames_decode() {
+    let hello = HostToMaster::Hello {
+        protocol_version: 5,
+    };
+    let mut buf = [0u8; 8];
+    assert_eq!(postcard::to_slice(&hello, &mut buf).unwrap(), [0x00, 0x05]);
+    let mut good = serial_frame(&[0x00, 0x05]);
+    assert_eq!(serial::decode_frame::<HostToMaster>(&mut good), Ok(hello));
+    let mut long = serial_frame(&[0x00, 0x85, 0x00]);
+    assert_eq!(
+        serial::decode_frame::<HostToMaster>(&mut long),
+        Err(FrameError::NonCanonical)
+    );
+}
+
+proptest! {
+    /// Whatever serial frame passes its checks and decodes is the one `encode` makes of it:
+    /// good messages with a payload byte changed and the CRC and COBS made good again.
+    #[test]
+    fn a_decoded_serial_message_encodes_to_its_frame(
+        m in arb_host_msg(),
+        at in any::<prop::sample::Index>(),
+        v in any::<u8>(),
+    ) {
+        let mut buf = [0u8; serial::MAX_PAYLOAD];
+        let mut payload = postcard::to_slice(&m, &mut buf).unwrap().to_vec();
+        let i = at.index(payload.len());
+        payload[i] = v;
+        let frame = serial_frame(&payload);
+        if let Ok(got) = serial::decode_frame::<HostToMaster>(&mut frame.clone()) {
+            let mut buf = [0u8; serial::MAX_FRAME + 1];
+            let again = serial::encode(&got, &mut buf).unwrap();
+            prop_assert_eq!(&again[..again.len() - 1], &frame[..]);
+        }
+    }
 }
