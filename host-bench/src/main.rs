@@ -66,6 +66,14 @@ enum Command {
         /// Fault injection: the host goes silent at this simulated time (seconds).
         #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
         fault_host_silent_after: Option<f64>,
+        /// Fault injection: the probability per SPI transaction, [0, 1), that a frame has a bit
+        /// flipped (each direction on its own).
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_spi_corrupt: Option<f64>,
+        /// Fault injection: the probability per SPI transaction, [0, 1), that it is lost
+        /// whole (the master reads an idle line, the slave sees nothing).
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_spi_drop: Option<f64>,
     },
     /// Every seed case, every sensor mode, all four odometry methods side by side, with the
     /// papers' reported figures.
@@ -212,6 +220,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             encoder_phase,
             fault_slave_off_at,
             fault_host_silent_after,
+            fault_spi_corrupt,
+            fault_spi_drop,
         } => {
             let scenario = match Scenario::builtin(&scenario) {
                 Some(s) => s,
@@ -241,6 +251,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let f = &mut opts.faults;
             f.slave_off_at = fault_slave_off_at.or(f.slave_off_at);
             f.host_silent_after = fault_host_silent_after.or(f.host_silent_after);
+            f.spi.corrupt = fault_spi_corrupt.unwrap_or(f.spi.corrupt);
+            f.spi.drop = fault_spi_drop.unwrap_or(f.spi.drop);
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }

@@ -69,6 +69,7 @@ fn mistakes_are_named_by_line_and_key() {
         (GOOD.replace("k_lateral", "k_sideways"), ":15:1: key `controller.k_sideways`", "unknown field"),
         (GOOD.replace("speed_ki = 4.5", "speed_ki = -1"), ":16:12: key `controller.speed_ki`", "must be >= 0"),
         (GOOD.replace("speed_kd = 0.002", "speed_kd = 1e6"), ":17:12: key `controller.speed_kd`", "at most 1000"),
+        (format!("{GOOD}[faults]\nspi_drop = 1.0\n"), ":19:12: key `faults.spi_drop`", "below 1"),
         (GOOD.replace("v1", "v2"), ":1:10: key `format`", "unsupported format"),
         (GOOD.replace("[start]", "[[start]]"), "key `start`", "write [start]"),
         (format!("{GOOD}[noise]\nencoder_phase = [0.5, 1.0]\n"), ":19:17: key `noise.encoder_phase`", "[0, 1)"),

@@ -684,6 +684,11 @@ impl Controller {
         }
     }
 
+    /// The newest valid frame from the slave: what the master knows of its pose.
+    pub fn slave_latest(&self) -> Option<SlaveFrame> {
+        self.slave_latest
+    }
+
     pub fn status(&self) -> u16 {
         self.status
     }

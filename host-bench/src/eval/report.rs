@@ -35,7 +35,7 @@ pub fn summary_text(s: &Summary) -> String {
          encoders        {p0:.3} and {p1:.3} of a count past an edge at power-on\n\
          robot           ended at ({x:.4}, {y:.4}) m, {dg:.1} mm from the goal{arr}\n\
          motors          switched on {on} times{after}\n\
-         SPI frames      {spi} exchanged, {spir} rejected\n\
+         SPI frames      {spi} exchanged, {spir} rejected{inj}; the master's last view of the slave's pose {view}\n\
          serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",
         scenario = s.scenario,
         robot = s.robot,
@@ -67,6 +67,27 @@ pub fn summary_text(s: &Summary) -> String {
         },
         spi = s.spi_frames,
         spir = s.spi_frames_rejected,
+        inj = {
+            let i = &s.spi_injected;
+            if i.corrupted_to_master + i.corrupted_to_slave + i.dropped > 0 {
+                format!(
+                    " ({} by the master, {} by the slave; injected: {} corrupted to the master, \
+                     {} to the slave, {} transactions lost)",
+                    s.spi_rejected_by_master,
+                    s.spi_rejected_by_slave,
+                    i.corrupted_to_master,
+                    i.corrupted_to_slave,
+                    i.dropped
+                )
+            } else {
+                String::new()
+            }
+        },
+        view = if s.master_view_matches_slave {
+            "is the slave's own"
+        } else {
+            "DIFFERS from the slave's"
+        },
         ser = s.serial_frames,
         serr = s.serial_frames_rejected,
         pv = s.protocol_version,

@@ -96,6 +96,8 @@ struct RawNoise {
 struct RawFaults {
     slave_off_at_s: Option<Spanned<f64>>,
     host_silent_after_s: Option<Spanned<f64>>,
+    spi_corrupt: Option<Spanned<f64>>,
+    spi_drop: Option<Spanned<f64>>,
 }
 
 /// Every table is a single table.
@@ -275,6 +277,23 @@ impl TomlFile<'_> {
             if let Some(v) = &f.host_silent_after_s {
                 faults.host_silent_after =
                     Some(self.non_negative(v, "faults.host_silent_after_s")?);
+            }
+            let rate = |v: &Spanned<f64>, key: &str| -> Res<f64> {
+                let x = self.non_negative(v, key)?;
+                if x >= 1.0 {
+                    return Err(self.at(
+                        v.span(),
+                        key,
+                        format!("a probability per SPI transaction, below 1: got {x}"),
+                    ));
+                }
+                Ok(x)
+            };
+            if let Some(v) = &f.spi_corrupt {
+                faults.spi.corrupt = rate(v, "faults.spi_corrupt")?;
+            }
+            if let Some(v) = &f.spi_drop {
+                faults.spi.drop = rate(v, "faults.spi_drop")?;
             }
         }
 

@@ -244,7 +244,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     };
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
-    let wire = Rc::new(RefCell::new(SpiWire::default()));
+    let wire = Rc::new(RefCell::new(SpiWire::new(SpiFaults::default(), 0)));
     let to_master: SharedLine = Rc::default();
     let to_host: SharedLine = Rc::default();
     let byte_time = byte_time(opts.master.baud);

@@ -101,7 +101,6 @@ impl MotorEncoders for EmuMotorEncoders {
 }
 
 /// The SPI wires between the boards.
-#[derive(Default)]
 pub struct SpiWire {
     /// Frame the slave armed for the next transaction.
     armed: Option<[u8; SPI_FRAME_LEN]>,
@@ -110,6 +109,58 @@ pub struct SpiWire {
     slave_waker: Option<Waker>,
     /// Transactions the master ran.
     pub transactions: u64,
+    /// Faults injected on the wire (smoltcp style: rates per transaction), and what was done.
+    pub faults: SpiFaults,
+    pub injected: SpiInjected,
+    rng: rand_chacha::ChaCha8Rng,
+}
+
+/// Fault rates on the SPI wire, each a probability per transaction in [0, 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SpiFaults {
+    /// One bit flipped in a frame, each direction on its own (a noisy line).
+    pub corrupt: f64,
+    /// The whole transaction lost: the master reads an idle line (MISO low) and the slave sees
+    /// nothing, its armed frame still waiting (a chip select glitch).
+    pub drop: f64,
+}
+
+/// What the wire did to the frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SpiInjected {
+    pub corrupted_to_master: u64,
+    pub corrupted_to_slave: u64,
+    pub dropped: u64,
+}
+
+impl SpiWire {
+    /// A wire with `faults`, its randomness from `seed` (a stream of its own, so a clean run
+    /// draws nothing and stays as it was).
+    pub fn new(faults: SpiFaults, seed: u64) -> Self {
+        use rand::SeedableRng;
+        SpiWire {
+            armed: None,
+            delivered: None,
+            slave_waker: None,
+            transactions: 0,
+            faults,
+            injected: SpiInjected::default(),
+            rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5350_495f_4641_554c),
+        }
+    }
+
+    /// True with probability `rate` (no draw at all for a rate of zero).
+    fn happens(&mut self, rate: f64) -> bool {
+        use rand::Rng;
+        rate > 0.0 && self.rng.random::<f64>() < rate
+    }
+
+    /// Flip one bit of `frame`, chosen at random.
+    fn flip_a_bit(&mut self, frame: &mut [u8; SPI_FRAME_LEN]) {
+        use rand::Rng;
+        let bit = self.rng.random_range(0..SPI_FRAME_LEN * 8);
+        frame[bit / 8] ^= 1 << (bit % 8);
+    }
 }
 
 /// Time one 64-byte transaction takes at the master's SPI clock.
@@ -168,10 +219,29 @@ impl SlaveBus for EmuMasterBus {
         Timer::after(self.transfer_time).await;
         let mut w = self.wire.borrow_mut();
         w.transactions += 1;
+        let SpiFaults { corrupt, drop } = w.faults;
+        if w.happens(drop) {
+            w.injected.dropped += 1;
+            // The slave never saw this transaction: its frame stays armed for the next.
+            if w.armed.is_none() {
+                w.armed = from_slave;
+            }
+            *rx = [0x00; SPI_FRAME_LEN];
+            return Ok(());
+        }
         match from_slave {
-            Some(bytes) => {
+            Some(mut bytes) => {
+                if w.happens(corrupt) {
+                    w.injected.corrupted_to_master += 1;
+                    w.flip_a_bit(&mut bytes);
+                }
                 *rx = bytes;
-                w.delivered = Some(*tx);
+                let mut to_slave = *tx;
+                if w.happens(corrupt) {
+                    w.injected.corrupted_to_slave += 1;
+                    w.flip_a_bit(&mut to_slave);
+                }
+                w.delivered = Some(to_slave);
                 if let Some(waker) = w.slave_waker.take() {
                     waker.wake();
                 }

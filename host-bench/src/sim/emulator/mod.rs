@@ -164,6 +164,8 @@ pub struct Faults {
     pub slave_off_at: Option<f64>,
     /// The host stops sending anything (cable pulled, host program hung).
     pub host_silent_after: Option<f64>,
+    /// Bit errors and lost transactions on the SPI wire, at rates per transaction.
+    pub spi: hw::SpiFaults,
 }
 
 impl Options {
@@ -264,6 +266,16 @@ pub struct Summary {
     /// SPI transactions the master ran, and frames either side dropped (CRC, decode, idle).
     pub spi_frames: u64,
     pub spi_frames_rejected: u64,
+    /// The same, by who dropped them: the master (slave frames) and the slave (master frames).
+    pub spi_rejected_by_master: u64,
+    pub spi_rejected_by_slave: u64,
+    /// What the SPI fault knobs did (all zero in a clean run).
+    pub spi_injected: hw::SpiInjected,
+    /// The slave's pose in the newest frame the master took, and whether it is the slave's own
+    /// at the end to the micrometre and binary angle: however many frames were lost on the way,
+    /// the odometry's cumulative counts lose nothing.
+    pub master_view_of_slave_m: Option<(f64, f64)>,
+    pub master_view_matches_slave: bool,
     /// Serial frames both ways, and frames either side dropped.
     pub serial_frames: u64,
     pub serial_frames_rejected: u64,
@@ -329,7 +341,15 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
 
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
-    let wire = Rc::new(RefCell::new(SpiWire::default()));
+    for (name, rate) in [
+        ("--fault-spi-corrupt", opts.faults.spi.corrupt),
+        ("--fault-spi-drop", opts.faults.spi.drop),
+    ] {
+        if !(0.0..1.0).contains(&rate) {
+            bail!("{name} is a probability per SPI transaction, in [0, 1): got {rate}");
+        }
+    }
+    let wire = Rc::new(RefCell::new(SpiWire::new(opts.faults.spi, opts.seed)));
     let to_master: SharedLine = Rc::default();
     let to_host: SharedLine = Rc::default();
     let host_log = Rc::new(RefCell::new(host::HostLog::default()));
@@ -480,6 +500,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let truth = plant.body();
     let slave = slave_shared.pose();
     let counters = master_shared.with(|c| c.counters()).unwrap_or_default();
+    let master_view = master_shared.with(|c| c.slave_latest()).flatten();
     let h = host_log.borrow();
     let slave_rx_rejected = slave_shared.frame().rx_rejected as u64;
     let end_point = truth.transform_point(tracked);
@@ -521,6 +542,18 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         motor_driven_s_after_arrival: at_arrival.map(|(_, s)| plant.motor_driven_s() - s),
         spi_frames: wire.borrow().transactions,
         spi_frames_rejected: counters.spi_rejected as u64 + slave_rx_rejected,
+        spi_rejected_by_master: counters.spi_rejected as u64,
+        spi_rejected_by_slave: slave_rx_rejected,
+        spi_injected: wire.borrow().injected,
+        master_view_of_slave_m: master_view.map(|f| {
+            let (x, y) = protocol::Point {
+                x_um: f.pose.x_um,
+                y_um: f.pose.y_um,
+            }
+            .to_metres();
+            (x, y)
+        }),
+        master_view_matches_slave: master_view.is_some_and(|f| f.pose == slave_shared.frame().pose),
         serial_frames: counters.serial_ok as u64 + h.frames_received,
         serial_frames_rejected: counters.serial_rejected as u64 + h.frames_rejected,
         protocol_version: protocol::PROTOCOL_VERSION,
