@@ -253,6 +253,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             f.host_silent_after = fault_host_silent_after.or(f.host_silent_after);
             f.spi.corrupt = fault_spi_corrupt.unwrap_or(f.spi.corrupt);
             f.spi.drop = fault_spi_drop.unwrap_or(f.spi.drop);
+            // Rows only for the files of --out: without them a run of any length keeps its
+            // summary alone.
+            opts.keep_log = out.is_some();
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }

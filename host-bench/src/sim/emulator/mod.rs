@@ -155,6 +155,9 @@ pub struct Options {
     /// Where each measuring-wheel encoder stands within its count at power-on, in counts,
     /// [0, 1) (None: drawn from `seed`). The slave cannot know it ([`Summary::encoder_phase`]).
     pub encoder_phase: Option<[f64; 2]>,
+    /// Keep the run's log rows ([`Run::log`]: about 59 MB per simulated hour). Off, the run
+    /// keeps its summary only and its memory stays flat however long it runs.
+    pub keep_log: bool,
 }
 
 /// Faults to inject, each at a virtual time in seconds (None: never).
@@ -189,6 +192,7 @@ impl Options {
             faults: scenario.faults.clone(),
             algorithm: protocol::spi::OdometryAlgorithm::Exact,
             encoder_phase: scenario.encoder_phase,
+            keep_log: true,
         }
     }
 }
@@ -480,7 +484,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             let p = plant.borrow();
             at_arrival = Some((p.motor_switch_ons(), p.motor_driven_s()));
         }
-        if next >= next_log {
+        if opts.keep_log && next >= next_log {
             next_log = next + log_every;
             let t_s = next.as_micros() as f64 / 1e6;
             let goal_t0 = host_log.borrow().follow_sent_at;
