@@ -303,3 +303,32 @@ fn generate_takes_the_power_on_phase_and_its_seed() {
         assert!(text.is_empty(), "{extra:?}");
     }
 }
+
+/// Issue 10's bad emulate options: each refused at once, naming the option, exit 1.
+#[test]
+fn bad_emulate_options_are_refused_naming_the_option() {
+    let cases: [(&[&str], &str); 7] = [
+        (&["--fault-slave-off-at", "nan"], "--fault-slave-off-at"),
+        (&["--fault-slave-off-at", "-1"], "--fault-slave-off-at"),
+        (
+            &["--fault-host-silent-after", "inf"],
+            "--fault-host-silent-after",
+        ),
+        (&["--duration", "1e-9"], "before the master answered"),
+        (&["--duration", "1e12"], "--duration"),
+        (
+            &["--sweep", "3", "--seed", "18446744073709551615"],
+            "--sweep 3",
+        ),
+        (&["--fault-spi-drop", "1"], "--fault-spi-drop"),
+    ];
+    for (args, says) in cases {
+        let start = std::time::Instant::now();
+        let out = host_bench().arg("emulate").args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(start.elapsed().as_secs() < 5, "{args:?}");
+    }
+}

@@ -9,6 +9,11 @@ pub fn run_sweep(
     json: bool,
 ) -> anyhow::Result<()> {
     anyhow::ensure!(n > 0, "--sweep needs at least one run");
+    anyhow::ensure!(
+        opts.seed.checked_add(n as u64 - 1).is_some(),
+        "--seed {} --sweep {n}: the last seed would pass 2^64 - 1",
+        opts.seed
+    );
     let mut summaries = Vec::new();
     for k in 0..n as u64 {
         let mut o = opts.clone();

@@ -301,11 +301,21 @@ pub struct Run {
 
 /// Emulate `scenario` to the end.
 pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
-    if !(opts.duration > 0.0 && opts.duration.is_finite()) {
+    // The work is the simulated time: a week is far past any bench run, and keeps a typo from
+    // running for ever.
+    if !(opts.duration > 0.0 && opts.duration <= MAX_DURATION_S) {
         bail!(
-            "--duration must be a positive number of seconds, got {}",
+            "--duration must be a number of seconds in (0, {MAX_DURATION_S}], got {}",
             opts.duration
         );
+    }
+    for (name, at) in [
+        ("--fault-slave-off-at", opts.faults.slave_off_at),
+        ("--fault-host-silent-after", opts.faults.host_silent_after),
+    ] {
+        if let Some(t) = at.filter(|t| !(*t >= 0.0 && t.is_finite())) {
+            bail!("{name} is a simulated time in seconds, >= 0: got {t}");
+        }
     }
     let wall = WallInstant::now();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
@@ -569,8 +579,18 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     if let Some(problem) = &h.problem {
         bail!("the emulated master refused the session: {problem}");
     }
+    if h.fingerprint_match.is_none() {
+        bail!(
+            "the run ended after {} s, before the master answered the host's hello: nothing was \
+             run to score (--duration of 0.1 s at least)",
+            opts.duration
+        );
+    }
     Ok(Run { summary, log })
 }
+
+/// The longest run, simulated seconds (a week).
+pub const MAX_DURATION_S: f64 = 7.0 * 86_400.0;
 
 /// The tracking error is scored from this long after the path starts (the robot may start
 /// off it), seconds.
