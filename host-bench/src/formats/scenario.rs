@@ -123,9 +123,14 @@ fn scenario_shape(file: &TomlFile, s: Shape) -> Res<()> {
 /// Reads and checks a scenario file (and the robot file it names).
 pub fn load(path: &Path) -> Result<Scenario> {
     let text = read_text(path, "scenario").map_err(|e| anyhow!(e))?;
+    parse(&text, path)
+}
+
+/// Checks a scenario's text; `path` names it in errors and places the robot file it names.
+pub fn parse(text: &str, path: &Path) -> Result<Scenario> {
     let file = TomlFile {
         path,
-        text: &text,
+        text,
         format: FORMAT,
         kind: "scenario",
     };
