@@ -105,7 +105,7 @@ struct RawLink {
 
 /// Reads and checks a bench.toml.
 pub fn load(path: &Path) -> Result<BenchFile, BenchFileError> {
-    let text = std::fs::read_to_string(path).map_err(|e| BenchFileError {
+    let text = crate::formats::toml_file::read_bounded_text(path).map_err(|e| BenchFileError {
         path: path.to_path_buf(),
         line: None,
         key: None,

@@ -77,9 +77,10 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
         bail!("--robot, --trajectory and --out are required");
     };
     for (flag, v) in [("--truth-rate", a.truth_rate), ("--abs-rate", a.abs_rate)] {
+        let max = host_bench::sim::generate::MAX_SAMPLE_RATE_HZ;
         ensure!(
-            v.is_finite() && v > 0.0,
-            "{flag} must be a positive number of Hz, got {v}"
+            v > 0.0 && v <= max,
+            "{flag} must be in (0, {max}] Hz, got {v}"
         );
     }
     let phase = power_on_phase(&a.phase, a.seed)?;

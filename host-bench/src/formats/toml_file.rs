@@ -55,15 +55,46 @@ impl std::error::Error for FileError {}
 
 pub type Res<T> = Result<T, FileError>;
 
+/// The largest description file (robot, scenario, bench) read, bytes: the seed robots are
+/// about 3 KB.
+pub const MAX_TEXT_FILE_BYTES: u64 = 1 << 20;
+
 /// Read `path`'s text, or say why not.
 pub fn read_text(path: &Path, kind: &str) -> Res<String> {
-    std::fs::read_to_string(path).map_err(|e| FileError {
+    read_bounded_text(path).map_err(|e| FileError {
         path: path.to_path_buf(),
         line: None,
         column: None,
         key: None,
         message: format!("cannot read the {kind}: {e}"),
     })
+}
+
+/// A regular file's text, at most [`MAX_TEXT_FILE_BYTES`]: a device, a pipe or a huge file is
+/// refused before anything is read, and a file that grows while read stops at the bound.
+pub fn read_bounded_text(path: &Path) -> Result<String, String> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
+    if !meta.is_file() {
+        return Err("not a regular file (a folder, device or pipe)".into());
+    }
+    let too_big = || {
+        format!(
+            "larger than {} KiB: not a description file",
+            MAX_TEXT_FILE_BYTES >> 10
+        )
+    };
+    if meta.len() > MAX_TEXT_FILE_BYTES {
+        return Err(too_big());
+    }
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_TEXT_FILE_BYTES + 1).read_to_string(&mut text))
+        .map_err(|e| e.to_string())?;
+    if text.len() as u64 > MAX_TEXT_FILE_BYTES {
+        return Err(too_big());
+    }
+    Ok(text)
 }
 
 /// A table's shape at the top level: `[name]` (false) or `[[name]]` (true).

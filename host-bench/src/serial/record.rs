@@ -78,7 +78,8 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             let layout = robot.odometry_layout()?;
             session::load_robot(link, &layout)?;
             (
-                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
+                crate::formats::toml_file::read_bounded_text(p)
+                    .map_err(|e| anyhow::anyhow!("reading {}: {e}", p.display()))?,
                 robot.name,
                 layout.abs().is_some(),
             )

@@ -72,6 +72,13 @@ pub const TIME_TOL_S: f64 = 1e-12;
 /// Largest sideways speed (m/s) tolerated on a robot that cannot move sideways.
 pub const SIDEWAYS_TOL_M_S: f64 = 1e-9;
 
+/// The fastest truth or absolute-encoder sampling, Hz (a row every 10 µs; time stamps are
+/// in ns).
+pub const MAX_SAMPLE_RATE_HZ: f64 = 1e5;
+/// The most truth and absolute-encoder rows one stream may hold (held in memory while written:
+/// about 190 MB resident at this bound).
+pub const MAX_SAMPLE_ROWS: f64 = 2e6;
+
 /// Rates of the sampled rows, and where the encoders stand at power-on.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GenerateOptions {
@@ -205,13 +212,26 @@ pub fn generate_phases(
         ("truth_rate_hz", opts.truth_rate_hz),
         ("abs_rate_hz", opts.abs_rate_hz),
     ] {
-        if !(rate.is_finite() && rate > 0.0) {
-            bail!("{what} must be a positive number, got {rate}");
+        if !(rate > 0.0 && rate <= MAX_SAMPLE_RATE_HZ) {
+            bail!("{what} must be in (0, {MAX_SAMPLE_RATE_HZ}] Hz, got {rate}");
         }
     }
     let duration = traj.duration();
     if !(duration.is_finite() && duration > 0.0) {
         bail!("the trajectory's duration must be positive and finite, got {duration}");
+    }
+    // The rows are held and written: bounded by what a file of this kind is for.
+    let abs_rate = if abs.is_empty() {
+        0.0
+    } else {
+        opts.abs_rate_hz * abs.len() as f64
+    };
+    let rows = duration * (opts.truth_rate_hz + abs_rate);
+    if rows > MAX_SAMPLE_ROWS {
+        bail!(
+            "{rows:.0} truth and absolute-encoder rows over the trajectory's {duration:.1} s: at \
+             most {MAX_SAMPLE_ROWS:.0} (lower the rates)"
+        );
     }
     if duration * 1e9 >= u64::MAX as f64 {
         bail!("the trajectory is too long for nanosecond times ({duration} s)");
