@@ -1,5 +1,6 @@
 //! Any byte stream on the serial line, both message directions, through the constant-memory
-//! frame decoder: no panic, and every message that comes out is one `encode` would send.
+//! frame decoder: no panic, and every message that comes out is exactly the frame `encode`
+//! makes of it (the bytes since the last delimiter).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -7,10 +8,16 @@ use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
 
 fn check<T: serde::Serialize + serde::de::DeserializeOwned>(data: &[u8]) {
     let mut decoder = FrameDecoder::new();
-    for &b in data {
+    let mut start = 0;
+    for (i, &b) in data.iter().enumerate() {
         if let Some(Ok(msg)) = decoder.push::<T>(b) {
             let mut buf = [0u8; serial::MAX_FRAME + 1];
-            assert!(serial::encode(&msg, &mut buf).is_ok());
+            let frame = serial::encode(&msg, &mut buf).expect("a decoded message encodes");
+            // The frame as received, delimiter included.
+            assert_eq!(frame, &data[start..=i]);
+        }
+        if b == 0 {
+            start = i + 1;
         }
     }
 }

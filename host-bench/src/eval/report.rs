@@ -35,7 +35,7 @@ pub fn summary_text(s: &Summary) -> String {
          encoders        {p0:.3} and {p1:.3} of a count past an edge at power-on\n\
          robot           ended at ({x:.4}, {y:.4}) m, {dg:.1} mm from the goal{arr}\n\
          motors          switched on {on} times{after}\n\
-         SPI frames      {spi} exchanged, {spir} rejected{inj}; the master's last view of the slave's pose {view}\n\
+         SPI frames      {spi} exchanged, {spir} rejected{inj}{view}\n\
          serial frames   {ser} exchanged, {serr} rejected (protocol v{pv}, schema {fp})\n",
         scenario = s.scenario,
         robot = s.robot,
@@ -83,10 +83,10 @@ pub fn summary_text(s: &Summary) -> String {
                 String::new()
             }
         },
-        view = if s.master_view_matches_slave {
-            "is the slave's own"
-        } else {
-            "DIFFERS from the slave's"
+        view = match s.master_view_matches_slave {
+            Some(true) => "; standing at the goal, the master's last view of the slave's pose is the slave's own",
+            Some(false) => "; standing at the goal, the master's last view of the slave's pose DIFFERS from the slave's",
+            None => "",
         },
         ser = s.serial_frames,
         serr = s.serial_frames_rejected,

@@ -113,6 +113,8 @@ pub struct SpiWire {
     pub faults: SpiFaults,
     pub injected: SpiInjected,
     rng: rand_chacha::ChaCha8Rng,
+    /// The slave has power (a lost transaction re-arms its frame only while it does).
+    powered: bool,
 }
 
 /// Fault rates on the SPI wire, each a probability per transaction in [0, 1).
@@ -146,6 +148,7 @@ impl SpiWire {
             faults,
             injected: SpiInjected::default(),
             rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5350_495f_4641_554c),
+            powered: true,
         }
     }
 
@@ -171,6 +174,7 @@ pub fn spi_transfer_time(clock_hz: u32) -> Duration {
 impl SpiWire {
     /// The slave lost power: its shift register no longer answers (MISO reads low).
     pub fn power_off(&mut self) {
+        self.powered = false;
         self.armed = None;
         self.delivered = None;
         self.slave_waker = None;
@@ -223,7 +227,7 @@ impl SlaveBus for EmuMasterBus {
         if w.happens(drop) {
             w.injected.dropped += 1;
             // The slave never saw this transaction: its frame stays armed for the next.
-            if w.armed.is_none() {
+            if w.powered && w.armed.is_none() {
                 w.armed = from_slave;
             }
             *rx = [0x00; SPI_FRAME_LEN];

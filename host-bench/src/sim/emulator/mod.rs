@@ -276,10 +276,11 @@ pub struct Summary {
     /// What the SPI fault knobs did (all zero in a clean run).
     pub spi_injected: hw::SpiInjected,
     /// The slave's pose in the newest frame the master took, and whether it is the slave's own
-    /// at the end to the micrometre and binary angle: however many frames were lost on the way,
+    /// at the end, to the micrometre and binary angle: however many frames were lost on the way,
     /// the odometry's cumulative counts lose nothing.
     pub master_view_of_slave_m: Option<(f64, f64)>,
-    pub master_view_matches_slave: bool,
+    /// Checked once the robot stands at its goal (`None` before).
+    pub master_view_matches_slave: Option<bool>,
     /// Serial frames both ways, and frames either side dropped.
     pub serial_frames: u64,
     pub serial_frames_rejected: u64,
@@ -438,6 +439,9 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     // (≤ 0.1 ms: a corner's peak lasts a few ms and a 10 ms sampling misses most of it), from
     // a second after the path started: (∫e² dt, steps, max, seconds scored).
     let mut tracking_error = (0.0f64, 0u64, 0.0f64, 0.0f64);
+    // The slave counts the master frames it rejected in a wrapping u16 (its frame's field):
+    // added up here as they go, so a long noisy run does not wrap.
+    let mut slave_rejects = (0u16, 0u64);
 
     sim.run_until_idle();
     loop {
@@ -457,6 +461,8 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
         // Score the slave at every update, at the very instant it sampled its sensors, once
         // the motion has started (the host's set-pose has been applied by then).
         let frame = slave_shared.frame();
+        slave_rejects.1 += frame.rx_rejected.wrapping_sub(slave_rejects.0) as u64;
+        slave_rejects.0 = frame.rx_rejected;
         if last_seq != Some(frame.seq) {
             last_seq = Some(frame.seq);
             slave_updates += 1;
@@ -516,7 +522,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let counters = master_shared.with(|c| c.counters()).unwrap_or_default();
     let master_view = master_shared.with(|c| c.slave_latest()).flatten();
     let h = host_log.borrow();
-    let slave_rx_rejected = slave_shared.frame().rx_rejected as u64;
+    let slave_rx_rejected = slave_rejects.1;
     let end_point = truth.transform_point(tracked);
     let goal = reference.at(motion_s).position;
     let distance_to_goal = (end_point.0 - goal.0).hypot(end_point.1 - goal.1);
@@ -567,7 +573,10 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             .to_metres();
             (x, y)
         }),
-        master_view_matches_slave: master_view.is_some_and(|f| f.pose == slave_shared.frame().pose),
+        // Only meaningful with the robot standing: while it moves the slave's pose changes
+        // between one poll and the next.
+        master_view_matches_slave: (status & protocol::serial::status::ARRIVED != 0)
+            .then(|| master_view.is_some_and(|f| f.pose == slave_shared.frame().pose)),
         serial_frames: counters.serial_ok as u64 + h.frames_received,
         serial_frames_rejected: counters.serial_rejected as u64 + h.frames_rejected,
         protocol_version: protocol::PROTOCOL_VERSION,
@@ -578,6 +587,16 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     };
     if let Some(problem) = &h.problem {
         bail!("the emulated master refused the session: {problem}");
+    }
+    if let Some(t) = opts
+        .faults
+        .host_silent_after
+        .filter(|_| h.fingerprint_match.is_none())
+    {
+        bail!(
+            "the host fell silent at {t} s (--fault-host-silent-after) before the master \
+             answered its hello: nothing was run to score"
+        );
     }
     if h.fingerprint_match.is_none() {
         bail!(
