@@ -78,7 +78,20 @@ fn sampling_rates_that_would_exhaust_memory_are_refused() {
     ] {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         refused(&args, says, Some(&out));
-    }
+    } // Counts of 0.1 µm: 6·10⁷ ticks along seed 001's curve (2.5 GB once made), refused
+      // before any is made.
+    let robots = tempfile::tempdir().unwrap();
+    let fine = robots.path().join("fine.toml");
+    let text = std::fs::read_to_string(&seed001).unwrap();
+    std::fs::write(
+        &fine,
+        text.replace("metres_per_count = 0.0004", "metres_per_count = 1e-7"),
+    )
+    .unwrap();
+    let fine = fine.to_str().unwrap().to_owned();
+    let args = gen(&fine, "seed001-curve", "--truth-rate", "100");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    refused(&args, "encoder ticks", Some(&out));
 }
 
 #[test]

@@ -79,6 +79,31 @@ pub const MAX_SAMPLE_RATE_HZ: f64 = 1e5;
 /// about 190 MB resident at this bound).
 pub const MAX_SAMPLE_ROWS: f64 = 2e6;
 
+/// The most encoder ticks one stream may hold (about 100 bytes of memory each while made).
+pub const MAX_TICKS: f64 = 2e6;
+
+/// An upper bound on the ticks `robot`'s encoders make along `traj`: each rolls at most
+/// |v| + |ω|·(its distance from the reference point + the carriage's trail), sampled finely
+/// enough for the catalogue's smooth and piecewise-constant motions.
+fn tick_bound(robot: &Robot, traj: &dyn Trajectory, trail: f64) -> f64 {
+    const SAMPLES: usize = 10_000;
+    let dt = traj.duration() / SAMPLES as f64;
+    let wheels = robot.encoder_wheels();
+    let mut rolled = vec![0.0; wheels.len()];
+    for k in 0..SAMPLES {
+        let t = traj.twist((k as f64 + 0.5) * dt);
+        let v = t.vx.hypot(t.vy);
+        for (r, w) in rolled.iter_mut().zip(&wheels) {
+            *r += (v + t.omega.abs() * (w.x.hypot(w.y) + trail)) * dt;
+        }
+    }
+    rolled
+        .iter()
+        .zip(&robot.encoders)
+        .map(|(r, e)| (r / e.metres_per_count).ceil() + 1.0)
+        .sum()
+}
+
 /// Rates of the sampled rows, and where the encoders stand at power-on.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GenerateOptions {
@@ -220,7 +245,8 @@ pub fn generate_phases(
     if !(duration.is_finite() && duration > 0.0) {
         bail!("the trajectory's duration must be positive and finite, got {duration}");
     }
-    // The rows are held and written: bounded by what a file of this kind is for.
+    // The events are held and written: bounded by what a file of this kind is for, before any
+    // is made (about 100 bytes of memory each).
     let abs_rate = if abs.is_empty() {
         0.0
     } else {
@@ -231,6 +257,19 @@ pub fn generate_phases(
         bail!(
             "{rows:.0} truth and absolute-encoder rows over the trajectory's {duration:.1} s: at \
              most {MAX_SAMPLE_ROWS:.0} (lower the rates)"
+        );
+    }
+    let ticks = tick_bound(robot, traj, trail.unwrap_or(0.0)) * phase_choices.len() as f64;
+    if ticks > MAX_TICKS {
+        bail!(
+            "robot {}: up to {ticks:.3e} encoder ticks along {duration:.1} s of this trajectory \
+             (its counts are {:.3e} m): at most {MAX_TICKS:.0} in one stream",
+            robot.name,
+            robot
+                .encoders
+                .iter()
+                .map(|e| e.metres_per_count)
+                .fold(f64::INFINITY, f64::min)
         );
     }
     if duration * 1e9 >= u64::MAX as f64 {
