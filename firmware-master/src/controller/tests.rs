@@ -116,18 +116,19 @@ fn at_the_goal_the_motors_switch_off_and_stay_off_until_pushed_away() {
     assert!(matches!(at(&mut c, 10_050, 1_003_000, 0), Drive::Duty(_)));
 }
 
+/// One control step at `ms` with the slave reporting the robot at `x_um` (a fresh frame: its
+/// sequence number from the time, every 10 ms) and the host still there.
+fn at(c: &mut Controller, ms: u64, x_um: i32) -> Drive {
+    c.on_slave_frame(t(ms), Ok(slave_frame((ms / 10) as u16, 0, x_um)));
+    c.on_host_message(t(ms), HostToMaster::Heartbeat);
+    c.control(t(ms))
+}
+
 #[test]
 fn stuck_just_outside_the_arrival_band_it_settles_and_switches_off() {
     let mut c = ctl();
     c.on_host_message(t(0), follow(500_000));
     let settle_ms = MasterConfig::DEFAULT.hold_settle_us as u64 / 1000;
-    let mut seq = 0;
-    let mut at = |c: &mut Controller, ms: u64, x_um: i32| {
-        seq += 1;
-        c.on_slave_frame(t(ms), Ok(slave_frame(seq, 0, x_um)));
-        c.on_host_message(t(ms), HostToMaster::Heartbeat);
-        c.control(t(ms))
-    };
     // Creeping: 0.3 mm every 0.5 s (more than a quarter of the 1 mm band) keeps it driving.
     let mut x = 996_000;
     for ms in (10..=4_000).step_by(10) {
@@ -159,10 +160,7 @@ fn stuck_just_outside_the_arrival_band_it_settles_and_switches_off() {
     let mut c = ctl();
     c.on_host_message(t(0), follow(500_000));
     for ms in (10..10_000).step_by(10) {
-        seq += 1;
-        c.on_slave_frame(t(ms), Ok(slave_frame(seq, 0, 992_000)));
-        c.on_host_message(t(ms), HostToMaster::Heartbeat);
-        assert!(matches!(c.control(t(ms)), Drive::Duty(_)), "{ms} ms");
+        assert!(matches!(at(&mut c, ms, 992_000), Drive::Duty(_)), "{ms} ms");
     }
 }
 
@@ -173,13 +171,6 @@ fn a_new_goal_starts_its_settle_time_afresh() {
     let mut c = ctl();
     c.on_host_message(t(0), follow(500_000));
     let settle_ms = MasterConfig::DEFAULT.hold_settle_us as u64 / 1000;
-    let mut seq = 0;
-    let mut at = |c: &mut Controller, ms: u64, x_um: i32| {
-        seq += 1;
-        c.on_slave_frame(t(ms), Ok(slave_frame(seq, 0, x_um)));
-        c.on_host_message(t(ms), HostToMaster::Heartbeat);
-        c.control(t(ms))
-    };
     // Arrived and standing at 1.000 m for longer than the settle time.
     let mut ms = 10;
     while ms < settle_ms + 1_000 {
