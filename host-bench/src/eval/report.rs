@@ -3,7 +3,7 @@
 //! Files are written atomically ([`write_atomically`]), so an interrupted or failed run never
 //! leaves a half-written file behind.
 
-use std::fs::{self, File};
+use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -13,7 +13,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::formats::atomic::write_atomically;
-use crate::sim::emulator::{LogRow, Run, Summary};
+use crate::sim::emulator::{self, LogRow, Run, Scenario, Summary};
 
 /// The short summary `emulate` prints.
 pub fn summary_text(s: &Summary) -> String {
@@ -96,32 +96,101 @@ pub fn summary_text(s: &Summary) -> String {
     text + &tracking
 }
 
-/// Write `run.csv`, `path.svg` and `summary.json` into `dir` (created if missing).
-pub fn write_outputs(run: &Run, dir: &Path) -> Result<Vec<PathBuf>> {
+/// Most log rows drawn in `path.svg`: the plot thins a longer log evenly (every row still
+/// goes to `run.csv`), so a long run's plot stays a few MB and its memory flat.
+pub const MAX_PLOTTED_ROWS: usize = 10_000;
+
+/// Emulate `scenario` and write `run.csv` (every log row, streamed to disk as the run makes
+/// it), `path.svg` (from the rows thinned to at most 2 × [`MAX_PLOTTED_ROWS`]) and
+/// `summary.json` into `dir` (created if missing; removed again if it was new and the run
+/// failed). Returns the run (its `log` the thinned rows) and the files written.
+pub fn emulate_into(
+    scenario: &Scenario,
+    opts: &emulator::Options,
+    dir: &Path,
+) -> Result<(Run, Vec<PathBuf>)> {
+    emulator::check_options(opts)?;
     if dir.exists() && !dir.is_dir() {
         anyhow::bail!("--out {}: exists and is not a directory", dir.display());
     }
+    let new_dir = !dir.exists();
     fs::create_dir_all(dir)
         .with_context(|| format!("--out {}: cannot create directory", dir.display()))?;
+    let written = write_run_files(scenario, opts, dir);
+    if written.is_err() && new_dir {
+        let _ = fs::remove_dir(dir); // only if empty: never what was there before
+    }
+    written
+}
+
+fn write_run_files(
+    scenario: &Scenario,
+    opts: &emulator::Options,
+    dir: &Path,
+) -> Result<(Run, Vec<PathBuf>)> {
     let csv_path = dir.join("run.csv");
     let svg_path = dir.join("path.svg");
     let json_path = dir.join("summary.json");
-    write_atomically(&csv_path, |file| write_csv(&run.log, file))?;
-    write_svg(&svg_path, |root| draw_run(run, root))?;
+    let mut plotted = Thinned::new(MAX_PLOTTED_ROWS);
+    let summary = write_atomically(&csv_path, |file| {
+        let mut w = csv::Writer::from_writer(std::io::BufWriter::new(file));
+        let summary = emulator::run_logged(
+            scenario,
+            opts,
+            Some(&mut |row| {
+                w.serialize(&row)?;
+                plotted.push(row);
+                Ok(())
+            }),
+        )?;
+        w.flush()?;
+        Ok(summary)
+    })?;
+    let run = Run {
+        summary,
+        log: plotted.rows,
+    };
+    write_svg(&svg_path, |root| draw_run(&run, root))?;
     write_atomically(&json_path, |file| {
         serde_json::to_writer_pretty(&mut *file, &run.summary)?;
         Ok(file.write_all(b"\n")?)
     })?;
-    Ok(vec![csv_path, svg_path, json_path])
+    Ok((run, vec![csv_path, svg_path, json_path]))
 }
 
-fn write_csv(rows: &[LogRow], file: &mut File) -> Result<()> {
-    let mut w = csv::Writer::from_writer(file);
-    for r in rows {
-        w.serialize(r)?;
+/// Every `stride`-th row of a stream, the stride doubling whenever `2 × cap` rows are kept:
+/// evenly spaced, between `cap` and `2 × cap` of them, whatever the stream's length.
+struct Thinned<T> {
+    rows: Vec<T>,
+    cap: usize,
+    stride: usize,
+    seen: usize,
+}
+
+impl<T> Thinned<T> {
+    fn new(cap: usize) -> Self {
+        Thinned {
+            rows: Vec::new(),
+            cap: cap.max(1),
+            stride: 1,
+            seen: 0,
+        }
     }
-    w.flush()?;
-    Ok(())
+
+    fn push(&mut self, row: T) {
+        if self.seen.is_multiple_of(self.stride) {
+            self.rows.push(row);
+        }
+        self.seen += 1;
+        if self.rows.len() >= 2 * self.cap {
+            let mut k = 0;
+            self.rows.retain(|_| {
+                k += 1;
+                (k - 1) % 2 == 0
+            });
+            self.stride *= 2;
+        }
+    }
 }
 
 /// Draws an 800 x 1100 SVG with `draw`, then writes it to `path` atomically.
@@ -410,4 +479,28 @@ fn draw_case(
         .draw()?;
     root.present()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Thinned;
+
+    #[test]
+    fn thinning_keeps_evenly_spaced_rows_between_cap_and_twice_cap() {
+        for n in [0usize, 1, 7, 8, 15, 16, 17, 100, 1000, 12_345] {
+            let mut t = Thinned::new(8);
+            for i in 0..n {
+                t.push(i);
+            }
+            let kept = &t.rows;
+            assert!(kept.len() < 16, "n {n}: kept {}", kept.len());
+            assert!(kept.len() >= n.min(8), "n {n}: kept {}", kept.len());
+            assert_eq!(kept.first().copied(), (n > 0).then_some(0));
+            assert!(
+                kept.windows(2).all(|w| w[1] - w[0] == t.stride),
+                "n {n}: {kept:?} not every {}",
+                t.stride
+            );
+        }
+    }
 }

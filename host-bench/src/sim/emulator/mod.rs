@@ -155,8 +155,9 @@ pub struct Options {
     /// Where each measuring-wheel encoder stands within its count at power-on, in counts,
     /// [0, 1) (None: drawn from `seed`). The slave cannot know it ([`Summary::encoder_phase`]).
     pub encoder_phase: Option<[f64; 2]>,
-    /// Keep the run's log rows ([`Run::log`]: about 59 MB per simulated hour). Off, the run
-    /// keeps its summary only and its memory stays flat however long it runs.
+    /// [`run`] keeps the run's log rows in [`Run::log`] (about 59 MB per simulated hour). Off,
+    /// the run keeps its summary only and its memory stays flat however long it runs;
+    /// [`run_logged`] streams the rows instead.
     pub keep_log: bool,
 }
 
@@ -300,8 +301,27 @@ pub struct Run {
     pub log: Vec<LogRow>,
 }
 
-/// Emulate `scenario` to the end.
+/// Emulate `scenario` to the end; the log rows are kept in [`Run::log`] if
+/// [`Options::keep_log`].
 pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
+    let mut log = Vec::new();
+    let summary = if opts.keep_log {
+        run_logged(
+            scenario,
+            opts,
+            Some(&mut |row| {
+                log.push(row);
+                Ok(())
+            }),
+        )?
+    } else {
+        run_logged(scenario, opts, None)?
+    };
+    Ok(Run { summary, log })
+}
+
+/// The options' own checks, made before anything runs (or is written).
+pub fn check_options(opts: &Options) -> Result<()> {
     // The work is the simulated time: a week is far past any bench run, and keeps a typo from
     // running for ever.
     if !(opts.duration > 0.0 && opts.duration <= MAX_DURATION_S) {
@@ -318,6 +338,17 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             bail!("{name} is a simulated time in seconds, >= 0: got {t}");
         }
     }
+    Ok(())
+}
+
+/// Emulate `scenario` to the end, handing each log row (every [`Options::log_period`]) to
+/// `log` as it is made: a sink that writes them out keeps memory flat however long the run.
+pub fn run_logged(
+    scenario: &Scenario,
+    opts: &Options,
+    mut log: Option<&mut dyn FnMut(LogRow) -> Result<()>>,
+) -> Result<Summary> {
+    check_options(opts)?;
     let wall = WallInstant::now();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     let sensors = MeasuringSensors::from_layout(&opts.robot_layout)
@@ -426,7 +457,6 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     let plant_step = Duration::from_micros(((opts.plant_step * 1e6).round() as u64).max(1));
     let log_every = Duration::from_micros(((opts.log_period * 1e6).round() as u64).max(1));
     let mut next_log = Instant::from_ticks(0);
-    let mut log = Vec::new();
     let mut last_seq = None;
     let (mut max_error, mut slave_updates) = (0.0f64, 0u64);
     // The motors' switch-ons and driven time when the master first said it arrived.
@@ -500,19 +530,19 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             let p = plant.borrow();
             at_arrival = Some((p.motor_switch_ons(), p.motor_driven_s()));
         }
-        if opts.keep_log && next >= next_log {
+        if let Some(sink) = log.as_mut().filter(|_| next >= next_log) {
             next_log = next + log_every;
             let t_s = next.as_micros() as f64 / 1e6;
             let goal_t0 = host_log.borrow().follow_sent_at;
             let wanted = goal_t0.map(|t0| reference.at(t_s - t0).position);
-            log.push(log_row(
+            sink(log_row(
                 t_s,
                 &plant.borrow(),
                 &slave_shared,
                 &master_shared,
                 next,
                 wanted,
-            ));
+            ))?;
         }
     }
 
@@ -605,7 +635,7 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
             opts.duration
         );
     }
-    Ok(Run { summary, log })
+    Ok(summary)
 }
 
 /// The longest run, simulated seconds (a week).
