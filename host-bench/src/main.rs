@@ -176,6 +176,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = host_bench::formats::atomic::remove_partials_on_signals() {
+        eprintln!("error: {e:#}");
+        return ExitCode::FAILURE;
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -253,21 +257,24 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             f.host_silent_after = fault_host_silent_after.or(f.host_silent_after);
             f.spi.corrupt = fault_spi_corrupt.unwrap_or(f.spi.corrupt);
             f.spi.drop = fault_spi_drop.unwrap_or(f.spi.drop);
-            // Rows only for the files of --out: without them a run of any length keeps its
-            // summary alone.
-            opts.keep_log = out.is_some();
+            // The log's rows only stream to the files of --out: a run of any length keeps
+            // its summary alone (and a thinned copy for the plot).
+            opts.keep_log = false;
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }
-            let run = emulator::run(&scenario, &opts)?;
-            if let Some(dir) = &out {
-                let written = report::write_outputs(&run, dir)?;
-                if !json {
-                    for p in written {
-                        eprintln!("wrote {}", p.display());
+            let run = match &out {
+                Some(dir) => {
+                    let (run, written) = report::emulate_into(&scenario, &opts, dir)?;
+                    if !json {
+                        for p in written {
+                            eprintln!("wrote {}", p.display());
+                        }
                     }
+                    run
                 }
-            }
+                None => emulator::run(&scenario, &opts)?,
+            };
             if json {
                 println!("{}", serde_json::to_string(&run.summary)?);
             } else {

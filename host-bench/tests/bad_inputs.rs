@@ -1,5 +1,5 @@
 //! Issue 10's corpus of bad inputs, one class a case: each gets exit 1, an error naming the
-//! option or file, no panic, in under 5 s, and nothing written.
+//! option or file, no panic, in under 5 s, under 200 MB resident, and nothing written.
 
 use std::path::Path;
 use std::process::Command;
@@ -26,12 +26,268 @@ fn refused(args: &[&str], says: &str, out: Option<&Path>) {
     assert!(err.contains(says), "{args:?}: wanted {says:?} in {err}");
     assert!(!err.contains("panicked"), "{args:?}: {err}");
     assert!(start.elapsed().as_secs_f64() < 5.0, "{args:?}");
+    let peak_mb = children_peak_rss_mb();
+    assert!(
+        peak_mb < 200.0,
+        "{args:?}: a child of this test peaked at {peak_mb} MB"
+    );
     if let Some(out) = out {
         assert!(!out.exists(), "{args:?} wrote {}", out.display());
         let dir = out.parent().unwrap();
         let left: Vec<_> = std::fs::read_dir(dir).unwrap().collect();
         assert!(left.is_empty(), "{args:?} left {left:?}");
     }
+}
+
+/// The largest resident set of any finished child of this test binary, MB (the kernel keeps
+/// the maximum over every child waited for: one that grew past the bound fails every later
+/// check too, never none).
+fn children_peak_rss_mb() -> f64 {
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: getrusage writes one rusage into the struct it is given.
+    let rc = unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut usage) };
+    assert_eq!(rc, 0);
+    usage.ru_maxrss as f64 / 1024.0 // KiB on Linux
+}
+
+/// `text` as a file `name` in `dir`, its path as a string.
+fn file(dir: &Path, name: &str, text: &str) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path.to_str().unwrap().to_owned()
+}
+
+const STREAM_HEAD: &str = "# omnibench tick stream v1\nt_ns,kind,id,value,x_m,y_m,theta_rad\n";
+
+#[test]
+fn tick_streams_that_cannot_be_scored_honestly_are_refused_at_their_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let seed001 = repo("robots/seed001.toml");
+    let start = "0,truth,,,0,0,0\n";
+    let cases = [
+        // Beyond what the estimators' fixed point holds (it would score 10^9 km of "error").
+        (
+            "far.csv",
+            format!("{STREAM_HEAD}0,truth,,,1e12,0,0\n"),
+            "far.csv:3: truth x_m must be within ±1e6 m",
+        ),
+        (
+            "spun.csv",
+            format!("{STREAM_HEAD}0,truth,,,0,0,6.9e12\n"),
+            "spun.csv:3: truth theta_rad must be within ±1e6 rad",
+        ),
+        // An absolute encoder the robot does not have, and a code wider than one it has.
+        (
+            "abs.csv",
+            format!("{STREAM_HEAD}{start}5,abs,3,12,,,\n10,truth,,,0,0,0\n"),
+            "absolute encoder 3 at t = 5 ns, but robot seed001 has 0",
+        ),
+        // Only the start pose: nothing to score.
+        (
+            "one.csv",
+            format!("{STREAM_HEAD}{start}5,tick,0,1,,,\n"),
+            "one truth row, the start pose",
+        ),
+        ("none.csv", STREAM_HEAD.to_string(), "no truth rows"),
+        (
+            "enc.csv",
+            format!("{STREAM_HEAD}{start}5,tick,7,1,,,\n10,truth,,,0,0,0\n"),
+            "tick for encoder 7",
+        ),
+    ];
+    for (name, text, says) in cases {
+        let ticks = file(d, name, &text);
+        refused(
+            &["replay", "--robot", &seed001, "--ticks", &ticks],
+            says,
+            None,
+        );
+    }
+    let seed004 = repo("robots/seed004.toml"); // one 8-bit absolute encoder
+    let wide = file(
+        d,
+        "wide.csv",
+        &format!("{STREAM_HEAD}{start}5,abs,0,256,,,\n10,truth,,,0,0,0\n"),
+    );
+    refused(
+        &["replay", "--robot", &seed004, "--ticks", &wide],
+        "does not fit its 8 bits",
+        None,
+    );
+    for rate in ["-5", "nan", "0", "1e30"] {
+        refused(
+            &[
+                "replay",
+                "--robot",
+                &seed001,
+                "--ticks",
+                &wide,
+                "--counts-rate",
+                rate,
+            ],
+            "counts sampling rate",
+            None,
+        );
+    }
+}
+
+#[test]
+fn a_gap_of_centuries_between_two_ticks_costs_no_time() {
+    // 1.8·10^19 ns between ticks, sampled at 1 GHz: 1.8·10^19 samples if walked one by one.
+    let dir = tempfile::tempdir().unwrap();
+    let ticks = file(
+        dir.path(),
+        "gap.csv",
+        &format!("{STREAM_HEAD}0,truth,,,0,0,0\n5,tick,0,1,,,\n18000000000000000000,tick,0,1,,,\n18000000000000000001,truth,,,0,0,0\n"),
+    );
+    let start = Instant::now();
+    let o = Command::new(env!("CARGO_BIN_EXE_host-bench"))
+        .args([
+            "replay",
+            "--robot",
+            &repo("robots/seed001.toml"),
+            "--ticks",
+            &ticks,
+        ])
+        .args(["--counts-rate", "1e9", "--json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(start.elapsed().as_secs_f64() < 5.0);
+}
+
+#[test]
+fn robot_values_outside_their_documented_ranges_are_refused_at_their_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let seed001 = std::fs::read_to_string(repo("robots/seed001.toml")).unwrap();
+    let ticks = file(
+        dir.path(),
+        "t.csv",
+        &format!("{STREAM_HEAD}0,truth,,,0,0,0\n1,truth,,,0,0,0\n"),
+    );
+    let cases = [
+        (
+            "metres_per_count = 0.0004   # 0.04 cm per pulse",
+            "metres_per_count = 1e308",
+            "`encoders[0].metres_per_count`: a count must be 1e-7 to 0.0625 m",
+        ),
+        (
+            "metres_per_count = 0.0004   # 0.04 cm per pulse",
+            "metres_per_count = 1e-300",
+            "got 1e-300 m",
+        ),
+        (
+            "y_m = 0.15                  # L/2, assumed",
+            "y_m = 1e300",
+            "`encoders[0].y_m`: must be in [-10, 10] m, got 1e300",
+        ),
+        (
+            "direction_deg = 0.0         # a positive",
+            "direction_deg = 1e20 # a positive",
+            "`encoders[0].direction_deg`: must be in [-360, 360] deg",
+        ),
+        (
+            "v_max_m_s = 1.0",
+            "v_max_m_s = 1e300",
+            "`drive_wheels[0].v_max_m_s`: must be in [0.001, 100] m/s",
+        ),
+    ];
+    for (i, (from, to, says)) in cases.into_iter().enumerate() {
+        assert!(seed001.contains(from), "{from}");
+        let robot = file(
+            dir.path(),
+            &format!("r{i}.toml"),
+            &seed001.replacen(from, to, 1),
+        );
+        refused(
+            &["replay", "--robot", &robot, "--ticks", &ticks],
+            says,
+            None,
+        );
+    }
+}
+
+#[test]
+fn counts_of_work_a_typo_could_ask_for_are_refused() {
+    for (args, says) in [
+        (
+            vec!["accuracy", "--seeds", "4000000000"],
+            "--seeds must be 1 to 1000",
+        ),
+        (
+            vec!["emulate", "--sweep", "100000000"],
+            "--sweep must be 1 to 1000",
+        ),
+        (
+            vec!["emulate", "--sweep", "1000", "--duration", "3600"],
+            "a week",
+        ),
+        (vec!["emulate", "--duration", "inf"], "--duration"),
+        (
+            vec!["emulate", "--fault-slave-off-at", "nan"],
+            "--fault-slave-off-at",
+        ),
+    ] {
+        refused(&args, says, None);
+    }
+    // An image named by --slave-elf is checked on the open file before it is read.
+    refused(
+        &[
+            "flash",
+            "--dry-run",
+            "--slave",
+            "--slave-elf",
+            "/dev/zero",
+            "--slave-probe",
+            "0483:3748",
+        ],
+        "not a regular file",
+        None,
+    );
+}
+
+/// Ctrl-C in the middle of writing a file leaves nothing behind: not the target, not the
+/// `.partial` temporary, and the exit says it was interrupted (128 + SIGINT).
+#[test]
+fn ctrl_c_while_writing_leaves_nothing_half_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("big.csv.gz");
+    // About 1.8·10^6 rows: a few seconds of writing, in the test profile's build.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_host-bench"))
+        .args(["generate", "--robot", &repo("robots/seed000-0.1mm.toml")])
+        .args([
+            "--trajectory",
+            "seed001-straight-40m",
+            "--truth-rate",
+            "10000",
+            "--out",
+        ])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let partial = || {
+        std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .any(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+    };
+    let start = Instant::now();
+    while !partial() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "generate ended before writing"
+        );
+        assert!(start.elapsed().as_secs() < 20, "no .partial file appeared");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    // SAFETY: kill sends a signal to our own child, still running (not yet waited for).
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(128 + libc::SIGINT), "{status:?}");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "left {left:?}");
 }
 
 #[test]

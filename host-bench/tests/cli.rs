@@ -227,8 +227,11 @@ fn replay_that_scores_nothing_fails_with_the_reasons() {
     let dir = tempfile::tempdir().unwrap();
     let robot = std::fs::read_to_string(tickstream_data("diff-drive.toml"))
         .unwrap()
-        .replace("metres_per_count = 0.01", "metres_per_count = 1.0");
-    let robot_path = dir.path().join("one-metre-counts.toml");
+        .replace("metres_per_count = 0.01", "metres_per_count = 0.0625")
+        .replace("y_m = 0.1\n", "y_m = 0.01\n")
+        .replace("y_m = -0.1\n", "y_m = -0.01\n");
+    // The longest count a robot file takes, on wheels 2 cm apart: 3 rad per count.
+    let robot_path = dir.path().join("long-counts.toml");
     std::fs::write(&robot_path, robot).unwrap();
     let out = host_bench()
         .args(["replay", "--robot"])

@@ -295,7 +295,8 @@ fn bad_negative_metres_per_count() {
     assert_eq!(
         e.to_string(),
         format!(
-            "{}:16:20: key `encoders[1].metres_per_count`: must be > 0, got -1",
+            "{}:16:20: key `encoders[1].metres_per_count`: a count must be 1e-7 to 0.0625 m \
+             of wheel travel, got -1 m",
             path.display()
         )
     );

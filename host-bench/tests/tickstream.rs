@@ -68,9 +68,9 @@ fn sample() -> TickStream {
             },
             Event::Truth {
                 t_ns: u64::MAX,
-                x_m: f64::MAX,
-                y_m: f64::MIN_POSITIVE / 8.0, // subnormal
-                theta_rad: -123456.789e10,
+                x_m: tickstream::MAX_TRUTH_COORDINATE_M, // the largest a reader takes
+                y_m: f64::MIN_POSITIVE / 8.0,            // subnormal
+                theta_rad: -123456.789e-1,
             },
         ],
     }
@@ -923,4 +923,26 @@ fn never_panics_on_garbage_files_named_gz() {
         fs::write(&path, &b).unwrap();
         let _ = tickstream::read(&path);
     }
+}
+
+/// A stream of nothing but comments (a small gzip of them expands to gigabytes) keeps a
+/// bounded amount of them, and says how many it dropped.
+#[test]
+fn comments_are_kept_up_to_a_bound_and_the_rest_counted() {
+    let mut text = String::from("# omnibench tick stream v1\n");
+    let line = format!("# {}\n", "c".repeat(98));
+    for _ in 0..20_000 {
+        text.push_str(&line); // 2 MB of comments
+    }
+    text.push_str("t_ns,kind,id,value,x_m,y_m,theta_rad\n0,truth,,,0,0,0\n");
+    let s = read_ok(&text);
+    let kept: usize = s.comments.iter().map(String::len).sum();
+    assert!(kept <= tickstream::MAX_KEPT_COMMENT_BYTES + 200, "{kept}");
+    let last = s.comments.last().unwrap();
+    let dropped = 20_000 - (s.comments.len() - 1);
+    assert!(
+        last.starts_with(&format!("({dropped} more comment lines not kept")),
+        "{last}"
+    );
+    assert_eq!(s.events.len(), 1);
 }

@@ -8,6 +8,15 @@ use super::Board;
 /// The firmware's target triple (Cortex-M3, the STM32F103's core).
 pub const FIRMWARE_TARGET: &str = "thumbv7m-none-eabi";
 
+/// The largest image file read, bytes. A release ELF of either board with its debug info is
+/// about 1-3 MB; a device or a stray huge file named by --*-elf is refused before reading.
+pub const MAX_IMAGE_BYTES: u64 = 64 << 20;
+
+/// An image file's bytes: a regular file of at most [`MAX_IMAGE_BYTES`].
+pub fn read_image(path: &Path) -> std::io::Result<Vec<u8>> {
+    crate::formats::bounded_file::read_bounded(path, MAX_IMAGE_BYTES, "a firmware image")
+}
+
 /// The command that builds one board's image, as the errors print it.
 pub fn build_command(board: Board) -> String {
     format!(
@@ -51,7 +60,7 @@ pub fn default_image(target_dir: &Path, board: Board) -> PathBuf {
 /// Checks that `path` is a 32-bit little-endian ARM ELF file: what a Cortex-M image is.
 /// The error says what the file is instead, or how to build the image if it is missing.
 pub fn check_image(board: Board, path: &Path, is_default: bool) -> Result<(), String> {
-    let bytes = match std::fs::read(path) {
+    let bytes = match read_image(path) {
         Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             return Err(if is_default {

@@ -20,7 +20,7 @@ pub struct LogSource {
 
 /// Reads the defmt table and RTT control block address from an image.
 pub fn log_source(board: Board, elf_path: &Path) -> Result<LogSource, String> {
-    let elf = std::fs::read(elf_path)
+    let elf = super::images::read_image(elf_path)
         .map_err(|e| format!("{board}: cannot read {}: {e}", elf_path.display()))?;
     let table = Table::parse(&elf)
         .map_err(|e| {

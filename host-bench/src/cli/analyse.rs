@@ -2,9 +2,15 @@
 
 use std::path::PathBuf;
 
+/// Most power-on seeds per accuracy case (each case replays every method once per seed).
+pub const MAX_ACCURACY_SEEDS: u64 = 1000;
+
 pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Result<()> {
     use host_bench::eval::accuracy;
-    anyhow::ensure!(seeds >= 1, "--seeds must be at least 1");
+    anyhow::ensure!(
+        (1..=MAX_ACCURACY_SEEDS).contains(&seeds),
+        "--seeds must be 1 to {MAX_ACCURACY_SEEDS}, got {seeds}"
+    );
     let total = accuracy::cases().len() as u64 * seeds;
     // indicatif draws only when stderr is a terminal: CI logs stay clean.
     let bar = indicatif::ProgressBar::new(total).with_style(
@@ -83,8 +89,23 @@ pub fn run_replay(
     let mut scores = Vec::new();
     let mut skipped = Vec::new();
     for name in &names {
-        match replay::replay(&robot, &stream, name, mode) {
-            Ok(s) => scores.push(s),
+        let run = if out.is_some() {
+            replay::replay
+        } else {
+            replay::replay_untracked
+        };
+        match run(&robot, &stream, name, mode) {
+            Ok(mut s) => {
+                // Each track is written (with --out) and let go at once: four of them for a
+                // long stream would be most of the memory.
+                if let Some(dir) = &out {
+                    std::fs::create_dir_all(dir)
+                        .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+                    s.write_track(&dir.join(format!("{}.csv", s.name)))?;
+                }
+                s.track = Vec::new();
+                scores.push(s)
+            }
             Err(e) if algorithm == "all" => {
                 skipped.push(serde_json::json!({"name": name, "reason": format!("{e:#}")}))
             }
@@ -105,13 +126,6 @@ pub fn run_replay(
             skipped.iter().map(each).collect::<Vec<_>>().join("; ")
         };
         anyhow::bail!("{}: no estimator can run: {why}", ticks.display());
-    }
-    if let Some(dir) = &out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
-        for s in &scores {
-            s.write_track(&dir.join(format!("{}.csv", s.name)))?;
-        }
     }
     // A recording's own poses, when `record` wrote them beside the stream.
     let board = match host_bench::eval::board_poses::beside(&ticks) {

@@ -6,11 +6,79 @@
 //! over the target. If the writer fails or panics, the temporary file is deleted (by
 //! [`tempfile::NamedTempFile`]'s drop) and an existing target is left untouched, so a reader
 //! never sees a half-written file and nothing half-written is left behind.
+//!
+//! A process stopped by a signal runs no drops, so the temporary files in the making are also
+//! listed here, and [`remove_partials_on_signals`] (installed by `main`) deletes them on
+//! Ctrl-C, SIGTERM or SIGHUP before the process exits. Only SIGKILL (or a power cut) can leave
+//! a `.partial` file, and its name says what it is.
 
 use std::fs::File;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, MutexGuard};
 
 use anyhow::Context;
+
+/// The temporary files being written now.
+static PARTIALS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// How many [`OwnCtrlC`] guards are alive: while any is, Ctrl-C belongs to them.
+static OWN_CTRL_C: AtomicUsize = AtomicUsize::new(0);
+
+fn partials() -> MutexGuard<'static, Vec<PathBuf>> {
+    PARTIALS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Starts a thread that, on SIGINT, SIGTERM or SIGHUP, deletes every temporary file being
+/// written and exits with 128 + the signal's number (the shell's convention). SIGINT is left
+/// alone while an [`OwnCtrlC`] guard is alive.
+pub fn remove_partials_on_signals() -> anyhow::Result<()> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP])
+        .context("installing the signal handler")?;
+    std::thread::spawn(move || {
+        for signal in signals.forever() {
+            if signal == SIGINT && OWN_CTRL_C.load(Ordering::SeqCst) > 0 {
+                continue;
+            }
+            // Held to the exit: no new temporary file can appear after the sweep.
+            let list = partials();
+            for path in list.iter() {
+                let _ = std::fs::remove_file(path);
+            }
+            std::process::exit(128 + signal);
+        }
+    });
+    Ok(())
+}
+
+/// While alive, Ctrl-C does not end the process: its owner (`record`, which stops and then
+/// writes its file) watches a flag of its own instead.
+pub struct OwnCtrlC(());
+
+impl OwnCtrlC {
+    pub fn take() -> Self {
+        OWN_CTRL_C.fetch_add(1, Ordering::SeqCst);
+        OwnCtrlC(())
+    }
+}
+
+impl Drop for OwnCtrlC {
+    fn drop(&mut self) {
+        OWN_CTRL_C.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// Takes a temporary file off the list when the write is over, whichever way it ended.
+struct Listed(Option<PathBuf>);
+
+impl Drop for Listed {
+    fn drop(&mut self) {
+        if let Some(path) = self.0.take() {
+            partials().retain(|p| *p != path);
+        }
+    }
+}
 
 /// Writes `path` through `write`, atomically: `write` gets a temporary file in the same
 /// folder, which is synced and renamed to `path` only if `write` returns `Ok`.
@@ -35,13 +103,22 @@ pub fn write_atomically<T>(
     // `File::create` would give it (0666 less the umask).
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut tmp = builder.tempfile_in(folder).with_context(|| {
-        format!(
-            "cannot write {}: cannot create a temporary file in {}",
-            path.display(),
-            folder.display()
-        )
-    })?;
+    // Declared before the file, so dropped after it: the file is gone before it is unlisted.
+    let mut listed = Listed(None);
+    let mut tmp = {
+        // Created and listed under the lock: a signal cannot fall between the two.
+        let mut list = partials();
+        let tmp = builder.tempfile_in(folder).with_context(|| {
+            format!(
+                "cannot write {}: cannot create a temporary file in {}",
+                path.display(),
+                folder.display()
+            )
+        })?;
+        list.push(tmp.path().to_path_buf());
+        listed.0 = Some(tmp.path().to_path_buf());
+        tmp
+    };
     let value = write(tmp.as_file_mut())
         .and_then(|value| {
             tmp.as_file().sync_all()?;

@@ -4,6 +4,7 @@
 //! atomically.
 
 pub mod atomic;
+pub mod bounded_file;
 pub mod drive_geometry;
 pub mod odometry_layout;
 pub mod robot;

@@ -15,7 +15,11 @@ use toml::Spanned;
 
 use super::robot::Robot;
 use super::toml_file::{read_text, FileError, Res, Shape, TomlFile};
-use crate::sim::emulator::{Faults, Motion, Scenario, POWER_ON_ROBOT};
+use crate::sim::emulator::{Faults, Motion, Scenario, MAX_DURATION_S, POWER_ON_ROBOT};
+
+/// How far from the field origin a start or target may lie, metres: the slave reports its
+/// pose in micrometres in an `i32` (±2147 m), and a run must stay inside that.
+pub const MAX_FIELD_M: f64 = 1000.0;
 use crate::sim::trajectory;
 
 /// The value of the `format` key this module reads.
@@ -59,8 +63,7 @@ struct RawTarget {
     to_m: Spanned<[f64; 2]>,
     speed_m_s: Spanned<f64>,
     robot_speed_m_s: Spanned<f64>,
-    #[serde(default)]
-    heading_deg: f64,
+    heading_deg: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -141,7 +144,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Scenario> {
 impl TomlFile<'_> {
     fn check_scenario(&self, raw: RawScenario) -> Result<Scenario> {
         let name = self.name(&raw.name, "name")?;
-        let duration = self.positive(&raw.duration_s, "duration_s")?;
+        let duration = self.within(&raw.duration_s, "duration_s", 0.1, MAX_DURATION_S, "s")?;
         // The robot's drive (for the master) and sensors (for the slave); without a robot
         // file, the boards' power-on robot.
         let (robot, mut drive, layout, motor) = match &raw.robot {
@@ -165,13 +168,15 @@ impl TomlFile<'_> {
 
         let s = &raw.start;
         let start = (
-            self.finite(&s.x_m, "start.x_m")?,
-            self.finite(&s.y_m, "start.y_m")?,
-            self.finite(&s.heading_deg, "start.heading_deg")?
+            self.within(&s.x_m, "start.x_m", -MAX_FIELD_M, MAX_FIELD_M, "m")?,
+            self.within(&s.y_m, "start.y_m", -MAX_FIELD_M, MAX_FIELD_M, "m")?,
+            self.within(&s.heading_deg, "start.heading_deg", -360.0, 360.0, "deg")?
                 .to_radians(),
         );
         let start_swivel = match (&s.swivel_deg, has_carriage) {
-            (Some(v), true) => self.finite(v, "start.swivel_deg")?.to_radians(),
+            (Some(v), true) => self
+                .within(v, "start.swivel_deg", -360.0, 360.0, "deg")?
+                .to_radians(),
             (Some(v), false) => {
                 return Err(anyhow!(self.at(
                     v.span(),
@@ -256,7 +261,8 @@ impl TomlFile<'_> {
                 drive.speed_kd_micro = k as u32;
             }
             if let Some(p) = &c.pursuit_period_s {
-                pursuit_period_s = Some(self.non_negative(p, "controller.pursuit_period_s")?);
+                pursuit_period_s =
+                    Some(self.within(p, "controller.pursuit_period_s", 0.0, 60.0, "s")?);
             }
         }
 
@@ -337,17 +343,31 @@ impl TomlFile<'_> {
     fn target(&self, t: &RawTarget) -> Result<Motion> {
         let point = |v: &Spanned<[f64; 2]>, key: &str| -> Res<(f64, f64)> {
             let [x, y] = *v.get_ref();
-            if !(x.is_finite() && y.is_finite()) {
-                return Err(self.at(v.span(), key, "must be finite numbers"));
+            if !(x.is_finite() && y.is_finite()) || x.abs().max(y.abs()) > MAX_FIELD_M {
+                return Err(self.at(
+                    v.span(),
+                    key,
+                    format!("must be two numbers within ±{MAX_FIELD_M} m, got [{x}, {y}]"),
+                ));
             }
             Ok((x, y))
         };
         Ok(Motion::Pursue {
             target_from: point(&t.from_m, "target.from_m")?,
             target_to: point(&t.to_m, "target.to_m")?,
-            target_speed: self.non_negative(&t.speed_m_s, "target.speed_m_s")?,
-            robot_speed: self.positive(&t.robot_speed_m_s, "target.robot_speed_m_s")?,
-            heading: t.heading_deg.to_radians(),
+            target_speed: self.within(&t.speed_m_s, "target.speed_m_s", 0.0, 100.0, "m/s")?,
+            robot_speed: self.within(
+                &t.robot_speed_m_s,
+                "target.robot_speed_m_s",
+                1e-3,
+                100.0,
+                "m/s",
+            )?,
+            heading: match &t.heading_deg {
+                Some(h) => self.within(h, "target.heading_deg", -360.0, 360.0, "deg")?,
+                None => 0.0,
+            }
+            .to_radians(),
         })
     }
 

@@ -60,6 +60,16 @@ pub type Res<T> = Result<T, FileError>;
 pub const MAX_TEXT_FILE_BYTES: u64 = 1 << 20;
 
 /// Read `path`'s text, or say why not.
+/// A number for a message: plain when it reads well, else in e-notation (1e300, not 301
+/// digits).
+pub fn short(x: f64) -> String {
+    if x == 0.0 || (1e-4..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 pub fn read_text(path: &Path, kind: &str) -> Res<String> {
     read_bounded_text(path).map_err(|e| FileError {
         path: path.to_path_buf(),
@@ -73,28 +83,14 @@ pub fn read_text(path: &Path, kind: &str) -> Res<String> {
 /// A regular file's text, at most [`MAX_TEXT_FILE_BYTES`]: a device, a pipe or a huge file is
 /// refused before anything is read, and a file that grows while read stops at the bound.
 pub fn read_bounded_text(path: &Path) -> Result<String, String> {
-    use std::io::Read;
-    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
-    if !meta.is_file() {
-        return Err("not a regular file (a folder, device or pipe)".into());
-    }
-    let too_big = || {
-        format!(
-            "larger than {} KiB: not a description file",
-            MAX_TEXT_FILE_BYTES >> 10
-        )
-    };
-    if meta.len() > MAX_TEXT_FILE_BYTES {
-        return Err(too_big());
-    }
-    let mut text = String::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(MAX_TEXT_FILE_BYTES + 1).read_to_string(&mut text))
+    let bytes = super::bounded_file::read_bounded(path, MAX_TEXT_FILE_BYTES, "a description file")
         .map_err(|e| e.to_string())?;
-    if text.len() as u64 > MAX_TEXT_FILE_BYTES {
-        return Err(too_big());
-    }
-    Ok(text)
+    String::from_utf8(bytes).map_err(|e| {
+        format!(
+            "not UTF-8 text (bad byte at offset {})",
+            e.utf8_error().valid_up_to()
+        )
+    })
 }
 
 /// A table's shape at the top level: `[name]` (false) or `[[name]]` (true).
@@ -141,6 +137,26 @@ impl TomlFile<'_> {
             Ok(x)
         } else {
             Err(self.at(v.span(), key, format!("must be > 0, got {x}")))
+        }
+    }
+
+    /// A finite number in `[lo, hi]` (`unit` for the message): the documented range of a
+    /// field, checked where it is read so nothing downstream meets an absurd magnitude.
+    pub fn within(&self, v: &Spanned<f64>, key: &str, lo: f64, hi: f64, unit: &str) -> Res<f64> {
+        let x = self.finite(v, key)?;
+        if (lo..=hi).contains(&x) {
+            Ok(x)
+        } else {
+            Err(self.at(
+                v.span(),
+                key,
+                format!(
+                    "must be in [{}, {}] {unit}, got {}",
+                    short(lo),
+                    short(hi),
+                    short(x)
+                ),
+            ))
         }
     }
 

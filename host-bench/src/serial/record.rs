@@ -128,6 +128,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
     )?;
 
     let stop = Arc::new(AtomicBool::new(false));
+    let _own_ctrl_c = crate::formats::atomic::OwnCtrlC::take();
     // Ctrl-C ends the recording cleanly: the file is still written whole.
     signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone())
         .context("installing the Ctrl-C handler")?;
@@ -157,6 +158,12 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             .is_some_and(|d| wall.elapsed().as_secs_f64() >= d)
         {
             stopped_by = "duration";
+            break;
+        }
+        // A stream is read back whole into memory: a recording stops at what a reader takes.
+        let most = crate::formats::tickstream::MAX_EVENTS;
+        if c.rows.len() >= most || c.board.len() >= most {
+            stopped_by = "size limit";
             break;
         }
         if let Some(bar) = req.progress {

@@ -6,11 +6,52 @@ use std::f64::consts::PI;
 use robot_math::wheel::{invert3, Mat3, Wheel};
 use toml::Spanned;
 
-use super::super::toml_file::{Res, TomlFile};
+use super::super::toml_file::{short, Res, TomlFile};
 use super::raw::{RawCarriage, RawCode, RawRobot};
 use super::{AbsMeasures, AbsoluteEncoder, Carriage, DriveWheel, Encoder, Robot};
 
+/// Largest distance of any sensor or wheel from the body origin, and largest wheel diameter
+/// and trail, metres: a robot, not a field. The fixed-point per-count constants stay far
+/// inside their range below this.
+pub const MAX_PLACE_M: f64 = 10.0;
+
+/// Shortest and longest count, metres. 0.1 um is finer than any odometry encoder (a 1 m/s
+/// wheel then ticks at 10 MHz); 1/16 m is what exact's fixed point takes per count.
+pub const COUNT_M: (f64, f64) = (1e-7, 0.0625);
+
+/// Fastest drive wheel, m/s.
+pub const MAX_WHEEL_SPEED_M_S: f64 = 100.0;
+
 impl TomlFile<'_> {
+    /// A position on the robot, metres, within [`MAX_PLACE_M`] of the body origin.
+    fn place(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
+        self.within(v, key, -MAX_PLACE_M, MAX_PLACE_M, "m")
+    }
+
+    /// A rolling direction, degrees, within one turn either way.
+    fn direction(&self, v: &Spanned<f64>, key: &str) -> Res<f64> {
+        self.within(v, key, -360.0, 360.0, "deg")
+    }
+
+    /// A count's length in metres (`m`, read at `span`), in [`COUNT_M`].
+    fn count_length(&self, span: std::ops::Range<usize>, key: &str, m: f64) -> Res<f64> {
+        let (lo, hi) = COUNT_M;
+        if m.is_finite() && (lo..=hi).contains(&m) {
+            Ok(m)
+        } else {
+            Err(self.at(
+                span,
+                key,
+                format!(
+                    "a count must be {} to {} m of wheel travel, got {} m",
+                    short(lo),
+                    short(hi),
+                    short(m)
+                ),
+            ))
+        }
+    }
+
     pub(super) fn check_robot(&self, raw: RawRobot) -> Res<Robot> {
         let name = self.name(&raw.name, "name")?;
 
@@ -28,12 +69,15 @@ impl TomlFile<'_> {
                     format!("\"{ename}\" is already the name of encoders[{j}]"),
                 ));
             }
-            let x = self.finite(&e.x_m, &k("x_m"))?;
-            let y = self.finite(&e.y_m, &k("y_m"))?;
-            let dir = self.finite(&e.direction_deg, &k("direction_deg"))?;
+            let x = self.place(&e.x_m, &k("x_m"))?;
+            let y = self.place(&e.y_m, &k("y_m"))?;
+            let dir = self.direction(&e.direction_deg, &k("direction_deg"))?;
             let metres_per_count =
                 match (&e.metres_per_count, &e.counts_per_rev, &e.wheel_diameter_m) {
-                    (Some(m), None, None) => self.positive(m, &k("metres_per_count"))?,
+                    (Some(m), None, None) => {
+                        let v = self.finite(m, &k("metres_per_count"))?;
+                        self.count_length(m.span(), &k("metres_per_count"), v)?
+                    }
                     (Some(m), _, _) => return Err(self.at(
                         m.span(),
                         &k("metres_per_count"),
@@ -49,8 +93,9 @@ impl TomlFile<'_> {
                                 format!("must be a whole number of counts > 0, got {counts}"),
                             ));
                         }
-                        let d = self.positive(d, &k("wheel_diameter_m"))?;
-                        PI * d / counts as f64
+                        let d = self.within(d, &k("wheel_diameter_m"), 1e-4, MAX_PLACE_M, "m")?;
+                        let m = PI * d / counts as f64;
+                        self.count_length(c.span(), &k("counts_per_rev"), m)?
                     }
                     (None, Some(c), None) => {
                         return Err(self.at(
@@ -125,10 +170,16 @@ impl TomlFile<'_> {
         for (i, w) in raw.drive_wheels.iter().enumerate() {
             let k = |f: &str| format!("drive_wheels[{i}].{f}");
             let w = w.get_ref();
-            let x = self.finite(&w.x_m, &k("x_m"))?;
-            let y = self.finite(&w.y_m, &k("y_m"))?;
-            let dir = self.finite(&w.direction_deg, &k("direction_deg"))?;
-            let v_max_m_s = self.positive(&w.v_max_m_s, &k("v_max_m_s"))?;
+            let x = self.place(&w.x_m, &k("x_m"))?;
+            let y = self.place(&w.y_m, &k("y_m"))?;
+            let dir = self.direction(&w.direction_deg, &k("direction_deg"))?;
+            let v_max_m_s = self.within(
+                &w.v_max_m_s,
+                &k("v_max_m_s"),
+                1e-3,
+                MAX_WHEEL_SPEED_M_S,
+                "m/s",
+            )?;
             drive_wheels.push(DriveWheel {
                 wheel: Wheel::at(x, y, dir.to_radians()),
                 v_max_m_s,
@@ -155,7 +206,7 @@ impl TomlFile<'_> {
 
         let tracked_point_x_m = match &raw.tracked_point {
             Some(t) => {
-                let x = self.finite(&t.get_ref().x_m, "tracked_point.x_m")?;
+                let x = self.place(&t.get_ref().x_m, "tracked_point.x_m")?;
                 if x == 0.0 {
                     return Err(self.at(
                         t.get_ref().x_m.span(),
@@ -197,15 +248,38 @@ impl TomlFile<'_> {
             ));
         }
         let model = robot_math::motor::DcMotor {
-            supply_v: self.positive(&r.supply_v, &k("supply_v"))?,
-            resistance_ohm: self.positive(&r.resistance_ohm, &k("resistance_ohm"))?,
-            torque_constant: self
-                .positive(&r.torque_constant_nm_per_a, &k("torque_constant_nm_per_a"))?,
-            gear_ratio: self.positive(&r.gear_ratio, &k("gear_ratio"))?,
-            wheel_radius_m: self.positive(&r.wheel_diameter_m, &k("wheel_diameter_m"))? / 2.0,
-            inertia_kg_m2: self.positive(&r.inertia_kg_m2, &k("inertia_kg_m2"))?,
-            viscous_nm_s: self.non_negative(&r.viscous_nm_s, &k("viscous_nm_s"))?,
-            coulomb_nm: self.non_negative(&r.coulomb_nm, &k("coulomb_nm"))?,
+            supply_v: self.within(&r.supply_v, &k("supply_v"), 0.1, 1000.0, "V")?,
+            resistance_ohm: self.within(
+                &r.resistance_ohm,
+                &k("resistance_ohm"),
+                1e-4,
+                1e4,
+                "ohm",
+            )?,
+            torque_constant: self.within(
+                &r.torque_constant_nm_per_a,
+                &k("torque_constant_nm_per_a"),
+                1e-5,
+                100.0,
+                "N m/A",
+            )?,
+            gear_ratio: self.within(&r.gear_ratio, &k("gear_ratio"), 0.01, 1e4, "")?,
+            wheel_radius_m: self.within(
+                &r.wheel_diameter_m,
+                &k("wheel_diameter_m"),
+                1e-3,
+                10.0,
+                "m",
+            )? / 2.0,
+            inertia_kg_m2: self.within(
+                &r.inertia_kg_m2,
+                &k("inertia_kg_m2"),
+                1e-12,
+                1e3,
+                "kg m^2",
+            )?,
+            viscous_nm_s: self.within(&r.viscous_nm_s, &k("viscous_nm_s"), 0.0, 1e3, "N m s")?,
+            coulomb_nm: self.within(&r.coulomb_nm, &k("coulomb_nm"), 0.0, 1e3, "N m")?,
             dead_band,
         };
         if model.steady_speed(1.0) <= 0.0 {
@@ -227,7 +301,13 @@ impl TomlFile<'_> {
         raw: &RawRobot,
         encoders: &[Encoder],
     ) -> Res<Carriage> {
-        let trail_m = self.positive(&c.get_ref().trail_m, "carriage.trail_m")?;
+        let trail_m = self.within(
+            &c.get_ref().trail_m,
+            "carriage.trail_m",
+            1e-3,
+            MAX_PLACE_M,
+            "m",
+        )?;
         if encoders.len() != 2 {
             return Err(self.at(
                 c.span(),

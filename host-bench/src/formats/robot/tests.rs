@@ -151,6 +151,7 @@ fn display_has_path_line_column_key() {
     .unwrap_err();
     assert_eq!(
         e.to_string(),
-        "t.toml:8:20: key `encoders[0].metres_per_count`: must be > 0, got -1"
+        "t.toml:8:20: key `encoders[0].metres_per_count`: a count must be 1e-7 to 0.0625 m of wheel \
+         travel, got -1 m"
     );
 }

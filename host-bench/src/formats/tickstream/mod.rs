@@ -50,6 +50,25 @@ const THETA_RAD: usize = 6;
 /// into one line).
 pub const MAX_LINE_BYTES: usize = 1 << 20;
 
+/// Largest truth coordinate, metres. The estimators' fixed point holds positions to about
+/// ±8.4·10^6 m (Q40 in an `i64`); a truth pose beyond that would be scored against a wrapped
+/// estimate, so it is refused when read.
+pub const MAX_TRUTH_COORDINATE_M: f64 = 1e6;
+
+/// Largest truth heading, radians (headings may be unwrapped). At 10^6 rad an `f64` still
+/// resolves 10^-10 rad, and the host's trigonometry stays within a few ulp.
+pub const MAX_TRUTH_HEADING_RAD: f64 = 1e6;
+
+/// Most events (rows) a stream may hold: they are kept in memory (40 bytes each), so this
+/// bounds a replay to a few hundred MB whatever a gzip file expands to. `generate` writes at
+/// most 2·10^6 ticks plus 2·10^6 rows of each other kind.
+pub const MAX_EVENTS: usize = 6_000_000;
+
+/// Comment text kept from one stream, bytes. Comments are written back when a stream is
+/// rewritten, so they are kept in memory; past this they are counted and dropped (a 7 MB
+/// gzip of comment lines expands to gigabytes).
+pub const MAX_KEPT_COMMENT_BYTES: usize = 64 * 1024;
+
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 const UTF8_BOM: &[u8] = b"\xef\xbb\xbf";
 const READ_BUFFER_BYTES: usize = 64 * 1024;

@@ -6,8 +6,8 @@ use std::path::Path;
 
 use super::row::{parse_header, parse_row, shown, split_fields, Header};
 use super::{
-    is_gz_name, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_LINE_BYTES,
-    READ_BUFFER_BYTES, UTF8_BOM,
+    is_gz_name, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
+    MAX_KEPT_COMMENT_BYTES, MAX_LINE_BYTES, READ_BUFFER_BYTES, UTF8_BOM,
 };
 use flate2::read::MultiGzDecoder;
 
@@ -87,6 +87,8 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
     let mut header: Option<Header> = None;
     let mut robot_line: Option<u64> = None;
     let mut last_t: Option<(u64, u64)> = None; // (t_ns, line)
+    let mut comment_bytes = 0usize;
+    let mut comments_dropped = 0u64;
 
     loop {
         line.clear();
@@ -154,7 +156,12 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
                 stream.robot = Some(robot.to_string());
             } else {
                 let comment = comment.strip_prefix(' ').unwrap_or(comment);
-                stream.comments.push(comment.to_string());
+                comment_bytes = comment_bytes.saturating_add(comment.len());
+                if comment_bytes <= MAX_KEPT_COMMENT_BYTES {
+                    stream.comments.push(comment.to_string());
+                } else {
+                    comments_dropped += 1;
+                }
             }
             continue;
         }
@@ -180,6 +187,12 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
                     }
                 }
                 last_t = Some((t, p.line_no));
+                if stream.events.len() == MAX_EVENTS {
+                    return Err(p.error(format!(
+                        "more than {MAX_EVENTS} events: a stream is replayed in memory, so it \
+                         holds at most {MAX_EVENTS} rows (split the recording)"
+                    )));
+                }
                 stream.events.push(event);
             }
         }
@@ -201,6 +214,12 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
                 COLUMNS.join(",")
             ),
         });
+    }
+    if comments_dropped > 0 {
+        stream.comments.push(format!(
+            "({comments_dropped} more comment lines not kept: a stream keeps at most \
+             {MAX_KEPT_COMMENT_BYTES} bytes of comments)"
+        ));
     }
     Ok(stream)
 }

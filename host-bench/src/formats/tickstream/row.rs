@@ -179,6 +179,17 @@ pub(super) fn parse_row(
         if !v.is_finite() {
             return Err(p.error(format!("truth {name} must be finite, got {}", shown(f))));
         }
+        let (limit, unit) = if column == THETA_RAD {
+            (MAX_TRUTH_HEADING_RAD, "rad")
+        } else {
+            (MAX_TRUTH_COORDINATE_M, "m")
+        };
+        if v.abs() > limit {
+            return Err(p.error(format!(
+                "truth {name} must be within ±{limit:e} {unit}, got {}",
+                shown(f)
+            )));
+        }
         Ok(v)
     };
 

@@ -8,7 +8,10 @@ use anyhow::{bail, Context};
 use flate2::write::GzEncoder;
 use flate2::Compression;
 
-use super::{is_gz_name, Event, TickStream, COLUMNS, MAGIC, WRITE_BUFFER_BYTES};
+use super::{
+    is_gz_name, Event, TickStream, COLUMNS, MAGIC, MAX_TRUTH_COORDINATE_M, MAX_TRUTH_HEADING_RAD,
+    WRITE_BUFFER_BYTES,
+};
 use crate::formats::atomic::write_atomically;
 
 /// Writes a tick stream: gzip-compressed if `path` ends in `.gz`. The stream is checked first
@@ -58,8 +61,14 @@ fn validate(stream: &TickStream) -> anyhow::Result<()> {
                 y_m,
                 theta_rad,
                 ..
-            } if !(x_m.is_finite() && y_m.is_finite() && theta_rad.is_finite()) => {
-                bail!("event {i} (t_ns {t}): truth pose must be finite, got ({x_m}, {y_m}, {theta_rad})")
+            } if !(x_m.abs() <= MAX_TRUTH_COORDINATE_M
+                && y_m.abs() <= MAX_TRUTH_COORDINATE_M
+                && theta_rad.abs() <= MAX_TRUTH_HEADING_RAD) =>
+            {
+                bail!(
+                    "event {i} (t_ns {t}): truth pose must be finite, within ±{MAX_TRUTH_COORDINATE_M:e} m \
+                     and ±{MAX_TRUTH_HEADING_RAD:e} rad (what a reader takes), got ({x_m}, {y_m}, {theta_rad})"
+                )
             }
             _ => {}
         }
