@@ -61,8 +61,14 @@ pub struct Controller {
     commands: CommandQueue,
     /// Latest usable slave frame and when (master clock) the slave sampled it.
     slave: Option<(SlaveFrame, Instant)>,
-    /// When the previous SPI transaction ended: the slave armed the next frame right then.
-    prev_exchange_end: Option<Instant>,
+    /// When the previous SPI transaction ended, if it was good: the slave surely saw it, so
+    /// it armed the next frame right then. After a failed one the master cannot tell (a frame
+    /// lost whole left the slave's armed frame as it was).
+    prev_good_exchange_end: Option<Instant>,
+    /// Master clock minus slave clock (low 32 bits of microseconds, wrapping), learned at
+    /// each exchange whose arming instant is known: it dates a frame's pose on the master's
+    /// clock after a lost transaction too.
+    slave_clock_offset: Option<u32>,
     last_fresh_slave: Option<Instant>,
     /// The drive motors' encoders: the last counts read and when, and the rim speeds they
     /// showed since the reading before (m/s).
@@ -116,7 +122,8 @@ impl Controller {
             last_stream_at: None,
             stream_recent: false,
             slave: None,
-            prev_exchange_end: None,
+            prev_good_exchange_end: None,
+            slave_clock_offset: None,
             last_fresh_slave: None,
             motor_counts: None,
             motor_speeds: None,
@@ -283,12 +290,16 @@ impl Controller {
 
     /// The outcome of an SPI poll.
     pub fn on_slave_frame(&mut self, now: Instant, frame: Result<SlaveFrame, SpiFrameError>) {
-        let armed_at = self.prev_exchange_end.replace(now);
+        let armed_at = self.prev_good_exchange_end.take();
         let Ok(f) = frame else {
             self.counters.spi_rejected = self.counters.spi_rejected.wrapping_add(1);
             return;
         };
         self.counters.spi_ok = self.counters.spi_ok.wrapping_add(1);
+        self.prev_good_exchange_end = Some(now);
+        if let Some(armed_at) = armed_at {
+            self.slave_clock_offset = Some((armed_at.as_micros() as u32).wrapping_sub(f.armed_us));
+        }
         self.slave_latest = Some(f);
         self.counters.slave_rx_rejected = f.rx_rejected as u32;
         if f.command_ack == self.command_seq {
@@ -318,7 +329,7 @@ impl Controller {
         // Until the slave has applied every queued command (a set-pose among them), its poses
         // may be from before them.
         if self.commands.is_empty() {
-            let sampled = Self::sample_time(armed_at, now, &f);
+            let sampled = self.sample_time(now, &f);
             self.slave = Some((f, sampled));
         }
     }
@@ -330,27 +341,29 @@ impl Controller {
     /// 0.6 m/s. The clocks are not synchronised, but the slave arms each frame right after the
     /// previous transaction ends (an instant the master knows on its own clock) and stamps
     /// both that moment and the pose's sampling time on its clock; their difference is the
-    /// pose's age at arming. Ages that make no sense (first frame, a slave reboot, a missed
-    /// transaction) fall back to the arrival time.
-    fn sample_time(armed_at: Option<Instant>, now: Instant, f: &SlaveFrame) -> Instant {
-        const MAX_AGE_US: u64 = 20_000;
-        let Some(armed_at) = armed_at else {
+    /// pose's age at arming, and arming time minus `armed_us` is the clocks' offset. The
+    /// offset is learned only when the arming instant is known (the exchange before was good)
+    /// and dates every frame, so a frame read after a lost transaction (armed a poll earlier
+    /// than the master's last exchange) is not taken for a fresher one. Ages that make no
+    /// sense (no offset yet, a slave reboot) fall back to the arrival time.
+    fn sample_time(&self, now: Instant, f: &SlaveFrame) -> Instant {
+        const MAX_AGE_US: i32 = 20_000;
+        let Some(offset) = self.slave_clock_offset else {
             return now;
         };
-        let age_at_arming = f.armed_us.wrapping_sub(f.time_us) as i32;
-        if age_at_arming < 0 {
+        if (f.armed_us.wrapping_sub(f.time_us) as i32) < 0 {
+            return now; // a pose sampled after its frame was armed: the slave's clock restarted
+        }
+        let age = (now.as_micros() as u32).wrapping_sub(f.time_us.wrapping_add(offset)) as i32;
+        if !(0..=MAX_AGE_US).contains(&age) || now.as_micros() < age as u64 {
             return now;
         }
-        let sampled = armed_at.as_micros().saturating_sub(age_at_arming as u64);
-        if now.as_micros().saturating_sub(sampled) > MAX_AGE_US {
-            return now;
-        }
-        Instant::from_micros(sampled)
+        Instant::from_micros(now.as_micros() - age as u64)
     }
 
     /// A bus error on the SPI side.
-    pub fn on_slave_bus_error(&mut self, now: Instant) {
-        self.prev_exchange_end = Some(now);
+    pub fn on_slave_bus_error(&mut self, _now: Instant) {
+        self.prev_good_exchange_end = None;
         self.counters.spi_rejected = self.counters.spi_rejected.wrapping_add(1);
     }
 

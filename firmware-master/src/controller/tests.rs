@@ -290,18 +290,35 @@ fn frame_age_comes_from_the_slave_clock() {
     // The slave's clock runs 1 s behind the master's. Polls end at 2.000 s and 2.002 s
     // (master clock); the slave armed its frame right after the first, holding a pose it
     // sampled 700 µs before that.
-    c.on_slave_frame(t(2_000), Err(SpiFrameError::Crc));
-    let mut f = slave_frame(1, 0, 0);
+    c.on_slave_frame(t(2_000), Ok(slave_frame(1, 0, 0)));
+    let mut f = slave_frame(2, 0, 0);
     f.armed_us = 1_000_000;
     f.time_us = 1_000_000 - 700;
     c.on_slave_frame(t(2_002), Ok(f));
     assert_eq!(c.slave.unwrap().1.as_micros(), 2_000_000 - 700);
+    // The poll at 2.004 s is lost whole: the slave saw nothing and still holds the frame it
+    // armed at 2.002 s. Read at 2.006 s, it is dated by the clocks' offset, not taken for a
+    // frame armed at 2.004 s.
+    c.on_slave_frame(t(2_004), Err(SpiFrameError::Crc));
+    let mut f = slave_frame(3, 0, 0);
+    f.armed_us = 1_002_000;
+    f.time_us = 1_002_000 - 300;
+    c.on_slave_frame(t(2_006), Ok(f));
+    assert_eq!(c.slave.unwrap().1.as_micros(), 2_002_000 - 300);
+    // The same after a bit error the slave did see (it armed a new frame at 2.006 s): the
+    // offset dates that one right too.
+    c.on_slave_frame(t(2_008), Err(SpiFrameError::Crc));
+    let mut f = slave_frame(4, 0, 0);
+    f.armed_us = 1_008_000;
+    f.time_us = 1_008_000 - 100;
+    c.on_slave_frame(t(2_010), Ok(f));
+    assert_eq!(c.slave.unwrap().1.as_micros(), 2_008_000 - 100);
     // A slave reboot (its clock back near zero) must not produce an absurd age.
-    let mut f = slave_frame(2, 0, 0);
+    let mut f = slave_frame(5, 0, 0);
     f.time_us = 5;
     f.armed_us = 3;
-    c.on_slave_frame(t(2_004), Ok(f));
-    assert_eq!(c.slave.unwrap().1.as_micros(), 2_004_000);
+    c.on_slave_frame(t(2_012), Ok(f));
+    assert_eq!(c.slave.unwrap().1.as_micros(), 2_012_000);
 }
 
 #[test]
