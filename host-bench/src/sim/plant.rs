@@ -294,22 +294,76 @@ impl Plant {
         y = add(&y, &k2, h / 3.0);
         y = add(&y, &k3, h / 3.0);
         y = add(&y, &k4, h / 6.0);
-        self.path_length += y.body.distance_to(y0.body);
-        // Edges crossed in this step, at the instant the (nearly linear over 100 µs) position
-        // crosses each whole count.
+        // Edges crossed in this step, at the instant each encoder's position crosses a whole
+        // count: found on the cubic through both ends' positions and speeds (RK4's own order
+        // of accuracy), not on a straight line. A straight line misplaced the edges of a
+        // wheel starting from rest by tens of microseconds, and with them the slave's
+        // placing of its wheels from their first ticks; it also made the edges depend on how
+        // the steps fell.
         let (p0, p1) = (self.encoder_positions(&y0), self.encoder_positions(&y));
         let mut crossed = Vec::new();
+        let mut end_speed = None;
         for j in 0..2 {
             let (a, b) = (p0[j], p1[j]);
             if a.floor() == b.floor() {
                 continue;
             }
+            let per_count = self.cfg.sensors.metres_per_count()[j];
+            let k_end = *end_speed.get_or_insert_with(|| f(h, &y));
+            let (v0, v1) = (
+                k1.rolled[j] / per_count * h,
+                k_end.rolled[j] / per_count * h,
+            );
+            let position = |u: f64| {
+                let (u2, u3) = (u * u, u * u * u);
+                (2.0 * u3 - 3.0 * u2 + 1.0) * a
+                    + (u3 - 2.0 * u2 + u) * v0
+                    + (3.0 * u2 - 2.0 * u3) * b
+                    + (u3 - u2) * v1
+            };
+            let slope = |u: f64| {
+                let u2 = u * u;
+                (6.0 * u2 - 6.0 * u) * (a - b)
+                    + (3.0 * u2 - 4.0 * u + 1.0) * v0
+                    + (3.0 * u2 - 2.0 * u) * v1
+            };
+            // Where the cubic reaches `edge` (it is on opposite sides at the ends): Newton from
+            // the straight line's guess, kept inside the bracket by bisection.
+            let crossing = |edge: f64| {
+                let rising = b > a;
+                let (mut lo, mut hi) = (0.0f64, 1.0f64);
+                let mut u = ((edge - a) / (b - a)).clamp(0.0, 1.0);
+                for _ in 0..60 {
+                    let g = position(u) - edge;
+                    // 1e-9 of a count: far below the slave's microsecond, near the rounding of
+                    // positions of 10^5 counts.
+                    if g.abs() < 1e-9 {
+                        return u;
+                    }
+                    if (g < 0.0) == rising {
+                        lo = u;
+                    } else {
+                        hi = u;
+                    }
+                    let newton = u - g / slope(u);
+                    let next = if newton > lo && newton < hi {
+                        newton
+                    } else {
+                        0.5 * (lo + hi)
+                    };
+                    if (next - u).abs() < 1e-12 || hi - lo < 1e-12 {
+                        return next;
+                    }
+                    u = next;
+                }
+                u
+            };
             let (lo, hi) = (
                 a.floor().min(b.floor()) as i64,
                 a.floor().max(b.floor()) as i64,
             );
             for edge in (lo + 1)..=hi {
-                let t = self.t + h * ((edge as f64 - a) / (b - a)).clamp(0.0, 1.0);
+                let t = self.t + h * crossing(edge as f64);
                 let count_after = if b > a { edge } else { edge - 1 };
                 crossed.push((t, j, count_after));
             }
@@ -321,6 +375,7 @@ impl Plant {
             }
         }
         crossed.sort_by(|x, y| x.0.total_cmp(&y.0));
+        self.path_length += y.body.distance_to(y0.body);
         self.edges.extend(crossed);
         self.state = y;
         self.wheel_speed = wheels_at(h);
@@ -398,6 +453,31 @@ mod tests {
         omni()
             .wheel_speeds(t)
             .map(|w| (w / full * 1000.0).round() as i16)
+    }
+
+    #[test]
+    fn edges_of_wheels_starting_from_rest_are_timed_to_well_under_a_microsecond() {
+        // From rest, full duty forward: the wheels' first counts come while they accelerate
+        // hardest, where a straight line through each step's ends misplaces them most. The
+        // 100 µs steps' edges must match those of 1 µs steps.
+        let edges = |step: f64| {
+            let mut p = Plant::new(cfg(), Pose2::default(), 0.0, [0.3, 0.7]);
+            p.set_duty(duty_for(&p, Twist::new(0.5, 0.0, 0.0)));
+            p.advance(0.05, step);
+            p.take_edges()
+        };
+        let (coarse, fine) = (edges(1e-4), edges(1e-6));
+        assert!(coarse.len() > 50, "{}", coarse.len());
+        assert_eq!(coarse.len(), fine.len());
+        let worst = coarse
+            .iter()
+            .zip(&fine)
+            .map(|(a, b)| {
+                assert_eq!((a.1, a.2), (b.1, b.2));
+                (a.0 - b.0).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 0.05e-6, "{worst} s");
     }
 
     #[test]
