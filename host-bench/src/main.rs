@@ -263,7 +263,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }
-            let run = match &out {
+            let mut run = match &out {
                 Some(dir) => {
                     let (run, written) = report::emulate_into(&scenario, &opts, dir)?;
                     if !json {
@@ -275,6 +275,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
                 None => emulator::run(&scenario, &opts)?,
             };
+            if opts.faults.spi.corrupt > 0.0 || opts.faults.spi.drop > 0.0 {
+                let check = emulator::fault_check(&scenario, &opts, &run.summary)?;
+                run.summary.fault_check = Some(check);
+            }
             if json {
                 println!("{}", serde_json::to_string(&run.summary)?);
             } else {

@@ -10,6 +10,7 @@ use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::future::poll_fn;
 use std::rc::Rc;
+use std::sync::{Arc, Mutex};
 use std::task::{Poll, Waker};
 
 use embassy_time::{Duration, Timer};
@@ -77,17 +78,48 @@ impl AbsoluteEncoderPins for EmuAbsEncoder {
     }
 }
 
-/// The three motor drivers: duties go straight to the plant's motors.
-pub struct EmuMotors(pub SharedPlant);
+/// Where the plant's motors take their duties from.
+#[derive(Clone, Debug, Default)]
+pub enum DutySource {
+    /// The master's control steps: the closed loop.
+    #[default]
+    Master,
+    /// The master's, and each control step's duty is written down.
+    Record(Arc<Mutex<Vec<[i16; 3]>>>),
+    /// A recorded run's, control step by control step; the master's own are ignored. The
+    /// robot then moves exactly as it did in that run, whatever the master saw.
+    Replay(Arc<Vec<[i16; 3]>>),
+}
+
+/// The three motor drivers: duties go to the plant's motors (see [`DutySource`]).
+pub struct EmuMotors {
+    pub plant: SharedPlant,
+    pub source: DutySource,
+    /// Control steps so far (each sets or stops the motors once).
+    pub steps: usize,
+}
+
+impl EmuMotors {
+    fn drive(&mut self, duty: [i16; 3]) {
+        let duty = match &self.source {
+            DutySource::Master => duty,
+            DutySource::Record(log) => {
+                log.lock().unwrap_or_else(|e| e.into_inner()).push(duty);
+                duty
+            }
+            DutySource::Replay(script) => script.get(self.steps).copied().unwrap_or([0; 3]),
+        };
+        self.steps += 1;
+        self.plant.borrow_mut().set_duty(duty);
+    }
+}
 
 impl MotorDrivers for EmuMotors {
     fn set_duty(&mut self, duty: [i16; 3]) {
-        self.0
-            .borrow_mut()
-            .set_duty(duty.map(|d| d.clamp(-1000, 1000)));
+        self.drive(duty.map(|d| d.clamp(-1000, 1000)));
     }
     fn stop(&mut self) {
-        self.0.borrow_mut().set_duty([0; 3]);
+        self.drive([0; 3]);
     }
 }
 

@@ -17,6 +17,7 @@ pub mod reference;
 
 use std::cell::RefCell;
 use std::rc::Rc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant as WallInstant;
 
 use anyhow::{bail, Context as _, Result};
@@ -159,6 +160,9 @@ pub struct Options {
     /// the run keeps its summary only and its memory stays flat however long it runs;
     /// [`run_logged`] streams the rows instead.
     pub keep_log: bool,
+    /// Where the plant's motors take their duties from: the master (the closed loop), or a
+    /// recorded run's ([`fault_check`]).
+    pub duties: hw::DutySource,
 }
 
 /// Faults to inject, each at a virtual time in seconds (None: never).
@@ -194,6 +198,7 @@ impl Options {
             algorithm: protocol::spi::OdometryAlgorithm::Exact,
             encoder_phase: scenario.encoder_phase,
             keep_log: true,
+            duties: hw::DutySource::Master,
         }
     }
 }
@@ -247,6 +252,8 @@ pub struct Summary {
     pub final_heading_error_rad: f64,
     /// Where the slave's odometry says the robot ended, metres.
     pub final_estimate_m: (f64, f64),
+    /// The slave's heading at the end, radians.
+    pub final_estimate_heading_rad: f64,
     /// Where the robot really ended, and how far its tracked point is from the goal.
     pub final_position_m: (f64, f64),
     pub distance_to_goal_m: f64,
@@ -294,6 +301,72 @@ pub struct Summary {
     pub slave_updates: u64,
     /// Firmware task polls: a machine-independent measure of the work emulated.
     pub firmware_polls: u64,
+    /// With link faults: this run against the clean one ([`fault_check`]; null without).
+    pub fault_check: Option<FaultCheck>,
+}
+
+/// A run with link faults against the same run clean.
+///
+/// In the closed loop the two cannot end at the same pose: while frames are lost the master
+/// steers on older ones, so the robot itself moves a little differently. What the links must
+/// not do is lose or corrupt odometry. So the faulty run is made a second time with the robot
+/// driven by the clean run's duties, control step by control step, and the faults on: the
+/// robot then moves exactly as in the clean run, and the slave's pose must end bit for bit
+/// where the clean run's did, and the master's last view of it be the slave's own.
+#[derive(Clone, Debug, Serialize)]
+pub struct FaultCheck {
+    /// The clean run's final slave pose (x, y m; heading rad).
+    pub clean_final_estimate_m: (f64, f64),
+    pub clean_final_estimate_heading_rad: f64,
+    /// How far the faulty closed-loop run's final slave pose is from the clean one's, metres.
+    pub closed_loop_apart_m: f64,
+    /// Faults on, robot driven through the clean run's duties: its final slave pose.
+    pub same_motion_final_estimate_m: (f64, f64),
+    pub same_motion_final_estimate_heading_rad: f64,
+    /// ... equal to the clean run's, every bit of x, y and heading.
+    pub same_motion_equals_clean: bool,
+    pub same_motion_master_view_matches_slave: Option<bool>,
+    /// Bad frames both ways in the same-motion run (all of them counted and dropped).
+    pub same_motion_spi_frames_rejected: u64,
+}
+
+/// [`FaultCheck`] for `faulty`, a closed-loop run of `scenario` with `opts` (whose faults are
+/// on): runs it clean, recording the duties, then faulty again on those duties.
+pub fn fault_check(scenario: &Scenario, opts: &Options, faulty: &Summary) -> Result<FaultCheck> {
+    let duties = Arc::new(Mutex::new(Vec::new()));
+    let clean_opts = Options {
+        faults: Faults::default(),
+        keep_log: false,
+        duties: hw::DutySource::Record(duties.clone()),
+        ..opts.clone()
+    };
+    let clean = run(scenario, &clean_opts)?.summary;
+    let script = std::mem::take(&mut *duties.lock().unwrap_or_else(|e| e.into_inner()));
+    let same_opts = Options {
+        keep_log: false,
+        duties: hw::DutySource::Replay(Arc::new(script)),
+        ..opts.clone()
+    };
+    let same = run(scenario, &same_opts)?.summary;
+    let pose = |s: &Summary| {
+        (
+            s.final_estimate_m.0,
+            s.final_estimate_m.1,
+            s.final_estimate_heading_rad,
+        )
+    };
+    let bits = |(x, y, t): (f64, f64, f64)| [x.to_bits(), y.to_bits(), t.to_bits()];
+    let (cx, cy, _) = pose(&clean);
+    Ok(FaultCheck {
+        clean_final_estimate_m: clean.final_estimate_m,
+        clean_final_estimate_heading_rad: clean.final_estimate_heading_rad,
+        closed_loop_apart_m: (faulty.final_estimate_m.0 - cx).hypot(faulty.final_estimate_m.1 - cy),
+        same_motion_final_estimate_m: same.final_estimate_m,
+        same_motion_final_estimate_heading_rad: same.final_estimate_heading_rad,
+        same_motion_equals_clean: bits(pose(&same)) == bits(pose(&clean)),
+        same_motion_master_view_matches_slave: same.master_view_matches_slave,
+        same_motion_spi_frames_rejected: same.spi_frames_rejected,
+    })
 }
 
 pub struct Run {
@@ -427,7 +500,11 @@ pub fn run_logged(
                 line: to_host.clone(),
                 byte_time,
             },
-            EmuMotors(plant.clone()),
+            EmuMotors {
+                plant: plant.clone(),
+                source: opts.duties.clone(),
+                steps: 0,
+            },
             EmuMotorEncoders(plant.clone()),
             &master_shared,
             &opts.master,
@@ -479,10 +556,13 @@ pub fn run_logged(
         if now >= end {
             break;
         }
-        let mut next = (now + plant_step).min(end);
-        if let Some(d) = sim.next_deadline() {
-            next = next.min(d.max(now));
-        }
+        // The physics steps on a fixed grid, never split at a firmware event: how the SPI
+        // traffic falls must not change the robot's motion by a rounding (a lost frame once
+        // moved an encoder edge across a microsecond). Every firmware access to the plant (the
+        // slave's updates, the control steps) is on the grid; other events in a step (SPI,
+        // UART) see the plant at the step's end, which they do not read.
+        let step = plant_step.as_ticks();
+        let next = Instant::from_ticks((now.as_ticks() / step + 1) * step).min(end);
         plant
             .borrow_mut()
             .advance((next - now).as_micros() as f64 * 1e-6, opts.plant_step);
@@ -579,6 +659,7 @@ pub fn run_logged(
         max_error_m: max_error,
         final_heading_error_rad: wrap_angle(slave.theta - truth.theta),
         final_estimate_m: (slave.x, slave.y),
+        final_estimate_heading_rad: slave.theta,
         final_position_m: (truth.x, truth.y),
         distance_to_goal_m: distance_to_goal,
         tracking_rms_m: (tracking_error.3 > 0.0)
@@ -614,6 +695,7 @@ pub fn run_logged(
         robot_uploaded: h.robot_uploaded,
         slave_updates,
         firmware_polls: sim.polls(),
+        fault_check: None,
     };
     if let Some(problem) = &h.problem {
         bail!("the emulated master refused the session: {problem}");
