@@ -196,8 +196,9 @@ pub struct RecordArgs {
 
 pub fn run_record(a: RecordArgs) -> Result<()> {
     if let Some(d) = a.duration {
-        if !(d.is_finite() && d > 0.0) {
-            bail!("--duration must be a positive number of seconds, got {d}");
+        // A recording also stops at the stream's size limit (docs/limits.md).
+        if !(d > 0.0 && d <= 604_800.0) {
+            bail!("--duration must be a number of seconds in (0, 604800] (a week), got {d}");
         }
     }
     let mut link = a.port.open()?;
