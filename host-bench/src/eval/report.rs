@@ -93,7 +93,24 @@ pub fn summary_text(s: &Summary) -> String {
         pv = s.protocol_version,
         fp = ok(s.schema_fingerprint_match),
     );
-    text + &tracking
+    let faults = match &s.fault_check {
+        Some(c) => format!(
+            "vs clean run    closed loop: the slave's pose ends {:.3} mm from the clean run's (the master steered on older frames while they were lost); driven through the clean run's duties with the same faults: {}, the master's view {}\n",
+            c.closed_loop_apart_m * 1e3,
+            if c.same_motion_equals_clean {
+                "the slave's pose equals the clean run's bit for bit"
+            } else {
+                "the slave's pose DIFFERS from the clean run's"
+            },
+            match c.same_motion_master_view_matches_slave {
+                Some(true) => "the slave's own",
+                Some(false) => "DIFFERS from the slave's",
+                None => "not checked (the robot never stood at its goal)",
+            }
+        ),
+        None => String::new(),
+    };
+    text + &tracking + &faults
 }
 
 /// Most log rows drawn in `path.svg`: the plot thins a longer log evenly (every row still
