@@ -91,6 +91,10 @@ pub enum DecodeErrorKind {
     TimeOverflow,
     /// A count change outside `i32`.
     CountOutOfRange,
+    /// A value written in a longer form than the encoder uses (a time step that fits a
+    /// shorter tick form, a varint with trailing zero bytes, a zero count change written
+    /// out): every event has one encoding, so two byte strings never mean the same.
+    NonCanonical,
 }
 
 // Header forms of the edges stream (see docs/protocol.md for the table).
@@ -211,6 +215,9 @@ impl Varint {
         if byte & 0x80 != 0 {
             return Ok(None);
         }
+        if byte == 0 && self.len > 1 {
+            return Err(DecodeErrorKind::NonCanonical); // an over-long varint
+        }
         let value = self.value;
         *self = Varint::default();
         Ok(Some(value))
@@ -312,11 +319,15 @@ impl EventDecoder {
             },
             EdgeState::TickLow { who, dt_high } => {
                 self.state = EdgeState::Header;
-                self.tick(who, (u64::from(dt_high) << 8) | u64::from(byte))
-                    .map(Some)
+                let dt = (u64::from(dt_high) << 8) | u64::from(byte);
+                if dt <= TICK1_MAX_DT {
+                    return Err(DecodeErrorKind::NonCanonical);
+                }
+                self.tick(who, dt).map(Some)
             }
             EdgeState::TickVarint { who } => match self.varint.push(byte, 10)? {
                 None => Ok(None),
+                Some(dt) if dt <= TICK2_MAX_DT => Err(DecodeErrorKind::NonCanonical),
                 Some(dt) => {
                     self.state = EdgeState::Header;
                     self.tick(who, dt).map(Some)
@@ -493,6 +504,9 @@ impl SampleDecoder {
                     return Ok(None);
                 };
                 let z = u32::try_from(z).map_err(|_| DecodeErrorKind::CountOutOfRange)?;
+                if z == 0 {
+                    return Err(DecodeErrorKind::NonCanonical); // no change is left out
+                }
                 let i = pending.trailing_zeros() as usize;
                 self.sample.counts_delta[i] = unzigzag(z);
                 pending & (pending - 1)

@@ -370,3 +370,90 @@ fn fast_cruise_at_60k_edges_per_second_takes_under_two_bytes_per_tick() {
     assert!(ticks > 55_000, "{ticks} ticks");
     assert!(per_tick <= 2.0, "{per_tick:.3} bytes per tick");
 }
+
+/// Every byte string the decoders accept whole is what the encoders make of what they
+/// decoded: one encoding per event stream.
+fn decodes_to_canonical(bytes: &[u8]) -> (bool, bool) {
+    let mut events = Vec::new();
+    let mut ok = true;
+    let mut dec = EventDecoder::new();
+    dec.feed(bytes, |r| match r {
+        Ok(e) => events.push(e),
+        Err(_) => ok = false,
+    });
+    let events_canonical = !ok || !dec.is_between_events() || encode_events(&events) == bytes;
+
+    let mut samples = Vec::new();
+    let mut ok = true;
+    let mut dec = SampleDecoder::new();
+    dec.feed(bytes, |r| match r {
+        Ok(s) => samples.push(s),
+        Err(_) => ok = false,
+    });
+    let mut again = Vec::new();
+    for s in &samples {
+        let mut buf = [0u8; MAX_SAMPLE_LEN];
+        let n = encode_sample(s, &mut buf).unwrap();
+        again.extend_from_slice(&buf[..n]);
+    }
+    let samples_canonical = !ok || !dec.is_between_samples() || again == bytes;
+    (events_canonical, samples_canonical)
+}
+
+#[test]
+fn longer_forms_than_the_encoder_uses_are_refused() {
+    let non_canonical: [&[u8]; 5] = [
+        &[0x80, 0x05],             // a 2-byte tick of dt 5 (one byte holds it)
+        &[0xC0, 0x05],             // a varint tick of dt 5
+        &[0xC0, 0xFF, 0x0F],       // a varint tick of dt 2047 (two bytes hold it)
+        &[0xC0, 0x80, 0x90, 0x00], // an over-long varint
+        &[0xE0, 0x85, 0x00, 1, 2], // an absolute reading with an over-long time
+    ];
+    for bytes in &non_canonical {
+        let mut errors = Vec::new();
+        EventDecoder::new().feed(bytes, |r| {
+            if let Err(e) = r {
+                errors.push(e.kind)
+            }
+        });
+        assert_eq!(errors, [DecodeErrorKind::NonCanonical], "{bytes:02x?}");
+    }
+    // A sample with encoder 0's change written out as zero.
+    let mut errors = Vec::new();
+    SampleDecoder::new().feed(&[0x01, 0x00], |r| {
+        if let Err(e) = r {
+            errors.push(e.kind)
+        }
+    });
+    assert_eq!(errors, [DecodeErrorKind::NonCanonical]);
+}
+
+proptest! {
+    #[test]
+    fn whatever_decodes_whole_encodes_back_to_the_same_bytes(
+        bytes in proptest::collection::vec(any::<u8>(), 0..64)
+    ) {
+        prop_assert_eq!(decodes_to_canonical(&bytes), (true, true));
+    }
+
+    #[test]
+    fn edited_good_streams_that_still_decode_are_canonical(
+        events in proptest::collection::vec((0u64..5000, 0u8..4, any::<bool>()), 1..20),
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..4),
+    ) {
+        let mut t = 0;
+        let events: Vec<Event> = events
+            .into_iter()
+            .map(|(dt, encoder, back)| {
+                t += dt;
+                Event::Tick { t_us: t, encoder, step: if back { Step::Backward } else { Step::Forward } }
+            })
+            .collect();
+        let mut bytes = encode_events(&events);
+        for (at, b) in edits {
+            let i = at.index(bytes.len());
+            bytes[i] = b;
+        }
+        prop_assert_eq!(decodes_to_canonical(&bytes).0, true);
+    }
+}

@@ -411,6 +411,14 @@ pub fn check_options(opts: &Options) -> Result<()> {
             bail!("{name} is a simulated time in seconds, >= 0: got {t}");
         }
     }
+    for (name, rate) in [
+        ("--fault-spi-corrupt", opts.faults.spi.corrupt),
+        ("--fault-spi-drop", opts.faults.spi.drop),
+    ] {
+        if !(0.0..1.0).contains(&rate) {
+            bail!("{name} is a probability per SPI transaction, in [0, 1): got {rate}");
+        }
+    }
     Ok(())
 }
 
@@ -460,14 +468,7 @@ pub fn run_logged(
 
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
-    for (name, rate) in [
-        ("--fault-spi-corrupt", opts.faults.spi.corrupt),
-        ("--fault-spi-drop", opts.faults.spi.drop),
-    ] {
-        if !(0.0..1.0).contains(&rate) {
-            bail!("{name} is a probability per SPI transaction, in [0, 1): got {rate}");
-        }
-    }
+
     let wire = Rc::new(RefCell::new(SpiWire::new(opts.faults.spi, opts.seed)));
     let to_master: SharedLine = Rc::default();
     let to_host: SharedLine = Rc::default();
