@@ -86,37 +86,49 @@ fn check(info: BoardInfo) -> Result<BoardInfo> {
     Ok(info)
 }
 
-/// Ask for the board info again until `done` holds, or fail with `what`.
-fn confirm(
+/// Send `commands` for the slave, then ask for the board info until `done` holds, or fail
+/// with `what`. Commands travel in plain frames, which a noisy line can lose: while the board
+/// does not show them applied, they are sent again every [`RESEND_AFTER`] (each one applied
+/// twice is applied once: a robot part overwrites its slot, a setting sets it again).
+fn send_until(
     link: &mut Link,
+    commands: &[SlaveCommand],
     what: &str,
     mut done: impl FnMut(&BoardInfo) -> bool,
 ) -> Result<BoardInfo> {
     let deadline = Instant::now() + ANSWER_TIMEOUT;
     loop {
-        std::thread::sleep(Duration::from_millis(20));
-        let info = info(link)?;
-        if done(&info) {
-            return Ok(info);
+        for c in commands {
+            link.send(&HostToMaster::Slave(*c))?;
         }
-        if Instant::now() > deadline {
-            bail!("{what} (the board reports: {info:?})");
+        let resend_at = Instant::now() + RESEND_AFTER;
+        loop {
+            std::thread::sleep(Duration::from_millis(20));
+            let info = info(link)?;
+            if done(&info) {
+                return Ok(info);
+            }
+            if Instant::now() > deadline {
+                bail!("{what} (the board reports: {info:?})");
+            }
+            if Instant::now() > resend_at {
+                break;
+            }
         }
     }
 }
 
-fn to_slave(link: &mut Link, c: SlaveCommand) -> Result<()> {
-    link.send(&HostToMaster::Slave(c))
-}
+/// How long a command may take to show before it is taken for lost and sent again: a few
+/// slave polls (2 ms each) and a serial round trip, with room for a busy host.
+const RESEND_AFTER: Duration = Duration::from_millis(400);
 
 /// Load `layout` into the slave; returns its fingerprint once the slave reports running it.
 pub fn load_robot(link: &mut Link, layout: &Layout) -> Result<u32> {
     let (commands, fp) = firmware_slave::robot_wire::upload_commands(layout);
-    for c in commands {
-        to_slave(link, c)?;
-    }
-    confirm(
+    let commands: Vec<SlaveCommand> = commands.collect();
+    send_until(
         link,
+        &commands,
         &format!("the slave did not take the robot (fingerprint {fp:08x})"),
         |i| i.robot == fp,
     )?;
@@ -151,18 +163,18 @@ pub fn set_method_and_source(
     reports: Reports,
     start: protocol::Pose,
 ) -> Result<BoardInfo> {
-    to_slave(link, SlaveCommand::SetAlgorithm(wire_algorithm(method)))?;
-    to_slave(
-        link,
+    let alg = wire_algorithm(method);
+    let commands = [
+        SlaveCommand::SetAlgorithm(alg),
         SlaveCommand::SetSource {
             source,
             reports,
             start,
         },
-    )?;
-    let alg = wire_algorithm(method);
-    confirm(
+    ];
+    send_until(
         link,
+        &commands,
         &format!(
             "the slave did not switch to `{}` reading {source:?} (a method this slave cannot run \
              on this robot is refused: `host-bench replay` says why)",
