@@ -250,6 +250,40 @@ pub struct VirtualBoardArgs {
     /// the real one, as a board flashed from another version would.
     #[arg(long, value_name = "HEX")]
     pub fault_schema: Option<String>,
+    /// Fault injection: the probability per serial frame, [0, 1), that it has a bit flipped
+    /// (each direction on its own).
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_serial_corrupt: f64,
+    /// Fault injection: the probability per serial frame, [0, 1), that it is lost.
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_serial_drop: f64,
+    /// Fault injection: the probability per SPI transaction, [0, 1), that a frame has a bit
+    /// flipped (each direction on its own).
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_spi_corrupt: f64,
+    /// Fault injection: the probability per SPI transaction, [0, 1), that it is lost whole.
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_spi_drop: f64,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -267,6 +301,20 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         seed: a.seed,
         ..virtual_board::Options::for_robot(layout)
     };
+    for (name, rate) in [
+        ("--fault-serial-corrupt", a.fault_serial_corrupt),
+        ("--fault-serial-drop", a.fault_serial_drop),
+        ("--fault-spi-corrupt", a.fault_spi_corrupt),
+        ("--fault-spi-drop", a.fault_spi_drop),
+    ] {
+        if !(0.0..1.0).contains(&rate) {
+            bail!("{name} is a probability per frame, in [0, 1): got {rate}");
+        }
+    }
+    opts.faults.serial_corrupt = a.fault_serial_corrupt;
+    opts.faults.serial_drop = a.fault_serial_drop;
+    opts.faults.spi.corrupt = a.fault_spi_corrupt;
+    opts.faults.spi.drop = a.fault_spi_drop;
     if let Some(s) = &a.fault_schema {
         let fp = u32::from_str_radix(s.trim_start_matches("0x"), 16)
             .with_context(|| format!("--fault-schema {s:?} is not a hex number"))?;

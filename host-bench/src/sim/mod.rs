@@ -4,5 +4,6 @@
 pub mod emulator;
 pub mod generate;
 pub mod plant;
+pub mod serial_noise;
 pub mod trajectory;
 pub mod virtual_board;

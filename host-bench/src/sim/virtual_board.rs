@@ -40,13 +40,19 @@ use virtual_time::Simulation;
 
 use super::emulator::hw::*;
 use super::plant::{MeasuringSensors, Plant, PlantConfig};
+use super::serial_noise::SerialNoise;
 use robot_math::motor::DcMotor;
 
-/// Fault knobs of the virtual board (for tests of the host's checks).
+/// Fault knobs of the virtual board (for tests of the host's checks and of the links).
 #[derive(Clone, Debug, Default)]
 pub struct Faults {
     /// Report this schema fingerprint in the hello reply instead of the real one.
     pub schema: Option<u32>,
+    /// Serial noise, per frame, each direction on its own: a bit flipped, or the frame lost.
+    pub serial_corrupt: f64,
+    pub serial_drop: f64,
+    /// Bit errors and lost transactions on the SPI wire between the boards.
+    pub spi: SpiFaults,
 }
 
 #[derive(Clone, Debug)]
@@ -244,7 +250,10 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     };
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
-    let wire = Rc::new(RefCell::new(SpiWire::new(SpiFaults::default(), 0)));
+    let wire = Rc::new(RefCell::new(SpiWire::new(opts.faults.spi, opts.seed)));
+    let f = &opts.faults;
+    let mut noise_to_master = SerialNoise::new(f.serial_corrupt, f.serial_drop, opts.seed ^ 0x5e1a);
+    let mut noise_to_host = SerialNoise::new(f.serial_corrupt, f.serial_drop, opts.seed ^ 0x5e1b);
     let to_master: SharedLine = Rc::default();
     let to_host: SharedLine = Rc::default();
     let byte_time = byte_time(opts.master.baud);
@@ -309,7 +318,9 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         }
         // Host -> master: whatever the pty has.
         match pty.read(&mut buf) {
-            Ok(n) if n > 0 => to_master.borrow_mut().deliver(&buf[..n]),
+            Ok(n) if n > 0 => to_master
+                .borrow_mut()
+                .deliver(&noise_to_master.pass(&buf[..n])),
             Ok(_) => {}
             Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
             Err(e) if e.kind() == ErrorKind::Interrupted => {}
@@ -332,6 +343,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
                 out.extend_from_slice(frame);
             }
         }
+        let out = noise_to_host.pass(&out);
         if !out.is_empty() {
             // Nobody reading: the bytes are lost, as on a UART with nothing attached.
             let _ = pty.write_all(&out);
