@@ -104,6 +104,24 @@ fn tick_streams_that_cannot_be_scored_honestly_are_refused_at_their_line() {
             None,
         );
     }
+    // A FIFO nobody writes to: read as empty at once, not waited on for ever.
+    let fifo = d.join("fifo.csv");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    refused(
+        &[
+            "replay",
+            "--robot",
+            &seed001,
+            "--ticks",
+            fifo.to_str().unwrap(),
+        ],
+        "fifo.csv: empty file",
+        None,
+    );
     let seed004 = repo("robots/seed004.toml"); // one 8-bit absolute encoder
     let wide = file(
         d,

@@ -24,6 +24,31 @@ pub fn open_regular(path: &Path) -> io::Result<File> {
     Ok(file)
 }
 
+/// Opens `path` for streaming: a regular file, or a pipe (`<(zcat run.csv.gz)`). The open does
+/// not block, so a FIFO that no program writes to reads as empty instead of hanging.
+pub fn open_stream(path: &Path) -> io::Result<File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        std::os::unix::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NONBLOCK);
+        let file = options.open(path)?;
+        // Reads block again (a pipe's writer may be slow); with no writer they end at once.
+        // SAFETY: F_GETFL/F_SETFL on a descriptor this function owns.
+        unsafe {
+            let fd = file.as_raw_fd();
+            let flags = libc::fcntl(fd, libc::F_GETFL);
+            if flags < 0 || libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK) < 0 {
+                return Err(io::Error::last_os_error());
+            }
+        }
+        Ok(file)
+    }
+    #[cfg(not(unix))]
+    options.open(path)
+}
+
 /// The bytes of the regular file `path`, at most `max` of them: a larger file is refused
 /// (`what` says what the file should have been), and one that grows while read stops at the
 /// bound. A missing file keeps its `NotFound` kind.
@@ -63,6 +88,24 @@ mod tests {
         assert_eq!(read_bounded(&big, 1024, "a test file").unwrap(), b"ok");
         let missing = read_bounded(&dir.path().join("nope"), 1024, "x").unwrap_err();
         assert_eq!(missing.kind(), io::ErrorKind::NotFound);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_without_a_writer_streams_as_empty_without_blocking() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("fifo");
+        let status = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let mut text = String::new();
+        open_stream(&fifo)
+            .unwrap()
+            .read_to_string(&mut text)
+            .unwrap();
+        assert_eq!(text, "");
     }
 
     #[cfg(unix)]

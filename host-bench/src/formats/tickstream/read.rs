@@ -1,6 +1,5 @@
 //! Reading a tick stream: the file or a reader, gzip or not, parsed line by line.
 
-use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
@@ -14,7 +13,7 @@ use flate2::read::MultiGzDecoder;
 /// Reads a tick stream file; gzip-compressed if its name ends in `.gz` or its data starts with
 /// the gzip magic bytes.
 pub fn read(path: &Path) -> Result<TickStream, ReadError> {
-    let file = File::open(path).map_err(|e| ReadError {
+    let file = crate::formats::bounded_file::open_stream(path).map_err(|e| ReadError {
         path: path.to_path_buf(),
         line: None,
         message: format!("cannot open: {e}"),
