@@ -77,6 +77,10 @@ enum Command {
         /// (`fault_check` in --json).
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_spi_drop: Option<f64>,
+        /// Fault injection: the probability per SPI transaction, [0, 1), that chip select rises
+        /// part way through: both boards keep a torn frame.
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_spi_torn: Option<f64>,
     },
     /// Every seed case, every sensor mode, all four odometry methods side by side, with the
     /// papers' reported figures.
@@ -229,6 +233,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             fault_host_silent_after,
             fault_spi_corrupt,
             fault_spi_drop,
+            fault_spi_torn,
         } => {
             let scenario = match Scenario::builtin(&scenario) {
                 Some(s) => s,
@@ -260,6 +265,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             f.host_silent_after = fault_host_silent_after.or(f.host_silent_after);
             f.spi.corrupt = fault_spi_corrupt.unwrap_or(f.spi.corrupt);
             f.spi.drop = fault_spi_drop.unwrap_or(f.spi.drop);
+            f.spi.torn = fault_spi_torn.unwrap_or(f.spi.torn);
             // The log's rows only stream to the files of --out: a run of any length keeps
             // its summary alone (and a thinned copy for the plot).
             opts.keep_log = false;
@@ -278,7 +284,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
                 None => emulator::run(&scenario, &opts)?,
             };
-            if opts.faults.spi.corrupt > 0.0 || opts.faults.spi.drop > 0.0 {
+            let spi = opts.faults.spi;
+            if spi.corrupt > 0.0 || spi.drop > 0.0 || spi.torn > 0.0 {
                 let check = emulator::fault_check(&scenario, &opts, &run.summary)?;
                 run.summary.fault_check = Some(check);
             }

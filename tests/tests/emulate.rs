@@ -311,6 +311,17 @@ fn spi_bit_errors_and_lost_transactions_lose_nothing() {
         faulty.spi_rejected_by_slave, i.corrupted_to_slave,
         "{faulty:?}"
     );
+    // Each rejection by why, as the wire saw the boards' decoders take them: all bad checks
+    // here, adding up to what the boards counted themselves.
+    let (m, sl) = (
+        faulty.spi_rejected_kinds_master,
+        faulty.spi_rejected_kinds_slave,
+    );
+    assert_eq!(
+        (m.total(), sl.total()),
+        (faulty.spi_rejected_by_master, faulty.spi_rejected_by_slave)
+    );
+    assert_eq!((m.crc, sl.crc), (m.total(), sl.total()), "{m:?} {sl:?}");
     assert_eq!(
         (
             clean.master_view_matches_slave,
@@ -339,7 +350,12 @@ fn spi_bit_errors_and_lost_transactions_lose_nothing() {
         opts.slave.sensor = sensor;
         opts.faults.spi.corrupt = 0.01;
         opts.faults.spi.drop = 0.05;
+        opts.faults.spi.torn = if seed == 2 { 0.02 } else { 0.0 };
         let faulty = emulator::run(&scenario, &opts).unwrap().summary;
+        assert_eq!(
+            faulty.spi_rejected_kinds_master.total(),
+            faulty.spi_rejected_by_master
+        );
         let check = emulator::fault_check(&scenario, &opts, &faulty).unwrap();
         assert!(
             check.same_motion_equals_clean,

@@ -284,6 +284,14 @@ pub struct VirtualBoardArgs {
         allow_negative_numbers = true
     )]
     pub fault_spi_drop: f64,
+    /// Fault injection: the probability per SPI transaction, [0, 1), that it is torn.
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_spi_torn: f64,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -306,6 +314,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         ("--fault-serial-drop", a.fault_serial_drop),
         ("--fault-spi-corrupt", a.fault_spi_corrupt),
         ("--fault-spi-drop", a.fault_spi_drop),
+        ("--fault-spi-torn", a.fault_spi_torn),
     ] {
         if !(0.0..1.0).contains(&rate) {
             bail!("{name} is a probability per frame, in [0, 1): got {rate}");
@@ -315,6 +324,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     opts.faults.serial_drop = a.fault_serial_drop;
     opts.faults.spi.corrupt = a.fault_spi_corrupt;
     opts.faults.spi.drop = a.fault_spi_drop;
+    opts.faults.spi.torn = a.fault_spi_torn;
     if let Some(s) = &a.fault_schema {
         let fp = u32::from_str_radix(s.trim_start_matches("0x"), 16)
             .with_context(|| format!("--fault-schema {s:?} is not a hex number"))?;

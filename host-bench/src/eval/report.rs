@@ -69,15 +69,30 @@ pub fn summary_text(s: &Summary) -> String {
         spir = s.spi_frames_rejected,
         inj = {
             let i = &s.spi_injected;
-            if i.corrupted_to_master + i.corrupted_to_slave + i.dropped > 0 {
+            if i.corrupted_to_master + i.corrupted_to_slave + i.dropped + i.torn > 0 {
+                let torn = if i.torn > 0 {
+                    format!(", {} torn", i.torn)
+                } else {
+                    String::new()
+                };
+                let (m, sl) = (&s.spi_rejected_kinds_master, &s.spi_rejected_kinds_slave);
                 format!(
                     " ({} by the master, {} by the slave; injected: {} corrupted to the master, \
-                     {} to the slave, {} transactions lost)",
+                     {} to the slave, {} transactions lost{torn}; by why: {} and {} bad checks, \
+                     {} and {} of the wrong kind, {} and {} undecodable, {} and {} non-canonical)",
                     s.spi_rejected_by_master,
                     s.spi_rejected_by_slave,
                     i.corrupted_to_master,
                     i.corrupted_to_slave,
-                    i.dropped
+                    i.dropped,
+                    m.crc,
+                    sl.crc,
+                    m.kind,
+                    sl.kind,
+                    m.decode,
+                    sl.decode,
+                    m.non_canonical,
+                    sl.non_canonical
                 )
             } else {
                 String::new()

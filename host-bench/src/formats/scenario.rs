@@ -101,6 +101,7 @@ struct RawFaults {
     host_silent_after_s: Option<Spanned<f64>>,
     spi_corrupt: Option<Spanned<f64>>,
     spi_drop: Option<Spanned<f64>>,
+    spi_torn: Option<Spanned<f64>>,
 }
 
 /// Every table is a single table.
@@ -305,6 +306,9 @@ impl TomlFile<'_> {
             }
             if let Some(v) = &f.spi_drop {
                 faults.spi.drop = rate(v, "faults.spi_drop")?;
+            }
+            if let Some(v) = &f.spi_torn {
+                faults.spi.torn = rate(v, "faults.spi_torn")?;
             }
         }
 

@@ -144,6 +144,9 @@ pub struct SpiWire {
     /// Faults injected on the wire (smoltcp style: rates per transaction), and what was done.
     pub faults: SpiFaults,
     pub injected: SpiInjected,
+    /// The frames each board's decoder refuses, by why (what the boards count, by kind).
+    pub rejected_by_master: SpiRejections,
+    pub rejected_by_slave: SpiRejections,
     rng: rand_chacha::ChaCha8Rng,
     /// The slave has power (a lost transaction re-arms its frame only while it does).
     powered: bool,
@@ -157,6 +160,9 @@ pub struct SpiFaults {
     /// The whole transaction lost: the master reads an idle line (MISO low) and the slave sees
     /// nothing, its armed frame still waiting (a chip select glitch).
     pub drop: f64,
+    /// The transaction torn: chip select rises part way through, and both sides keep the bytes
+    /// shifted so far, the rest of each frame idle (0x00).
+    pub torn: f64,
 }
 
 /// What the wire did to the frames.
@@ -165,6 +171,36 @@ pub struct SpiInjected {
     pub corrupted_to_master: u64,
     pub corrupted_to_slave: u64,
     pub dropped: u64,
+    pub torn: u64,
+}
+
+/// Frames refused, by why (`protocol::spi::SpiFrameError`), as the receiving board's decoder
+/// sees them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SpiRejections {
+    /// The check failed (a flipped bit, an idle or torn frame).
+    pub crc: u64,
+    /// A frame of the other direction's type.
+    pub kind: u64,
+    pub decode: u64,
+    pub non_canonical: u64,
+}
+
+impl SpiRejections {
+    fn count<T: protocol::spi::SpiFrame>(&mut self, frame: &[u8; SPI_FRAME_LEN]) {
+        use protocol::spi::SpiFrameError as E;
+        match protocol::spi::decode::<T>(frame) {
+            Ok(_) => {}
+            Err(E::Crc) => self.crc += 1,
+            Err(E::Kind) => self.kind += 1,
+            Err(E::Decode) => self.decode += 1,
+            Err(E::NonCanonical) => self.non_canonical += 1,
+        }
+    }
+
+    pub fn total(&self) -> u64 {
+        self.crc + self.kind + self.decode + self.non_canonical
+    }
 }
 
 impl SpiWire {
@@ -179,6 +215,8 @@ impl SpiWire {
             transactions: 0,
             faults,
             injected: SpiInjected::default(),
+            rejected_by_master: SpiRejections::default(),
+            rejected_by_slave: SpiRejections::default(),
             rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5350_495f_4641_554c),
             powered: true,
         }
@@ -255,7 +293,11 @@ impl SlaveBus for EmuMasterBus {
         Timer::after(self.transfer_time).await;
         let mut w = self.wire.borrow_mut();
         w.transactions += 1;
-        let SpiFaults { corrupt, drop } = w.faults;
+        let SpiFaults {
+            corrupt,
+            drop,
+            torn,
+        } = w.faults;
         if w.happens(drop) {
             w.injected.dropped += 1;
             // The slave never saw this transaction: its frame stays armed for the next.
@@ -263,27 +305,41 @@ impl SlaveBus for EmuMasterBus {
                 w.armed = from_slave;
             }
             *rx = [0x00; SPI_FRAME_LEN];
+            w.rejected_by_master.count::<protocol::spi::SlaveFrame>(rx);
             return Ok(());
         }
         match from_slave {
             Some(mut bytes) => {
+                let mut to_slave = *tx;
+                if w.happens(torn) {
+                    use rand::Rng;
+                    w.injected.torn += 1;
+                    let shifted = w.rng.random_range(1..SPI_FRAME_LEN);
+                    bytes[shifted..].fill(0);
+                    to_slave[shifted..].fill(0);
+                }
                 if w.happens(corrupt) {
                     w.injected.corrupted_to_master += 1;
                     w.flip_a_bit(&mut bytes);
                 }
                 *rx = bytes;
-                let mut to_slave = *tx;
                 if w.happens(corrupt) {
                     w.injected.corrupted_to_slave += 1;
                     w.flip_a_bit(&mut to_slave);
                 }
+                w.rejected_by_master.count::<protocol::spi::SlaveFrame>(rx);
+                w.rejected_by_slave
+                    .count::<protocol::spi::MasterFrame>(&to_slave);
                 w.delivered = Some(to_slave);
                 if let Some(waker) = w.slave_waker.take() {
                     waker.wake();
                 }
             }
             // Nobody armed: the master's pull-down holds MISO low (docs/pinmap.md).
-            None => *rx = [0x00; SPI_FRAME_LEN],
+            None => {
+                *rx = [0x00; SPI_FRAME_LEN];
+                w.rejected_by_master.count::<protocol::spi::SlaveFrame>(rx);
+            }
         }
         Ok(())
     }

@@ -283,6 +283,10 @@ pub struct Summary {
     pub spi_rejected_by_slave: u64,
     /// What the SPI fault knobs did (all zero in a clean run).
     pub spi_injected: hw::SpiInjected,
+    /// The frames each board refused, by why, as the wire saw them decoded (they add up to
+    /// `spi_rejected_by_master` and `spi_rejected_by_slave`).
+    pub spi_rejected_kinds_master: hw::SpiRejections,
+    pub spi_rejected_kinds_slave: hw::SpiRejections,
     /// The slave's pose in the newest frame the master took, and whether it is the slave's own
     /// at the end, to the micrometre and binary angle: however many frames were lost on the way,
     /// the odometry's cumulative counts lose nothing.
@@ -414,6 +418,7 @@ pub fn check_options(opts: &Options) -> Result<()> {
     for (name, rate) in [
         ("--fault-spi-corrupt", opts.faults.spi.corrupt),
         ("--fault-spi-drop", opts.faults.spi.drop),
+        ("--fault-spi-torn", opts.faults.spi.torn),
     ] {
         if !(0.0..1.0).contains(&rate) {
             bail!("{name} is a probability per SPI transaction, in [0, 1): got {rate}");
@@ -677,6 +682,8 @@ pub fn run_logged(
         spi_rejected_by_master: counters.spi_rejected as u64,
         spi_rejected_by_slave: slave_rx_rejected,
         spi_injected: wire.borrow().injected,
+        spi_rejected_kinds_master: wire.borrow().rejected_by_master,
+        spi_rejected_kinds_slave: wire.borrow().rejected_by_slave,
         master_view_of_slave_m: master_view.map(|f| {
             let (x, y) = protocol::Point {
                 x_um: f.pose.x_um,
