@@ -338,8 +338,12 @@ fn a_noisy_serial_line_and_spi_wire_lose_nothing_and_stay_bit_exact() {
         play_file(&board, &ticks, &robot, PlayKind::Ticks, Default::default()).unwrap()
     };
     let mut opts = virtual_board::Options::default();
-    opts.faults.serial_corrupt = 0.01;
-    opts.faults.serial_drop = 0.05;
+    opts.faults.serial = host_bench::sim::serial_noise::SerialFaults {
+        corrupt: 0.01,
+        drop: 0.05,
+        duplicate: 0.01,
+        delay: 0.01,
+    };
     opts.faults.spi.corrupt = 0.01;
     opts.faults.spi.drop = 0.05;
     let board = Board::start(opts);

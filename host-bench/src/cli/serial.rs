@@ -267,6 +267,23 @@ pub struct VirtualBoardArgs {
         allow_negative_numbers = true
     )]
     pub fault_serial_drop: f64,
+    /// Fault injection: the probability per serial frame, [0, 1), that it arrives twice.
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_serial_duplicate: f64,
+    /// Fault injection: the probability per serial frame, [0, 1), that it arrives after the
+    /// next one.
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_serial_delay: f64,
     /// Fault injection: the probability per SPI transaction, [0, 1), that a frame has a bit
     /// flipped (each direction on its own).
     #[arg(
@@ -312,6 +329,8 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     for (name, rate) in [
         ("--fault-serial-corrupt", a.fault_serial_corrupt),
         ("--fault-serial-drop", a.fault_serial_drop),
+        ("--fault-serial-duplicate", a.fault_serial_duplicate),
+        ("--fault-serial-delay", a.fault_serial_delay),
         ("--fault-spi-corrupt", a.fault_spi_corrupt),
         ("--fault-spi-drop", a.fault_spi_drop),
         ("--fault-spi-torn", a.fault_spi_torn),
@@ -320,8 +339,16 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             bail!("{name} is a probability per frame, in [0, 1): got {rate}");
         }
     }
-    opts.faults.serial_corrupt = a.fault_serial_corrupt;
-    opts.faults.serial_drop = a.fault_serial_drop;
+    opts.faults.serial = host_bench::sim::serial_noise::SerialFaults {
+        corrupt: a.fault_serial_corrupt,
+        drop: a.fault_serial_drop,
+        duplicate: a.fault_serial_duplicate,
+        delay: a.fault_serial_delay,
+    };
+    let f = opts.faults.serial;
+    if f.corrupt + f.drop + f.duplicate + f.delay >= 1.0 {
+        bail!("the --fault-serial-* rates must add up to under 1");
+    }
     opts.faults.spi.corrupt = a.fault_spi_corrupt;
     opts.faults.spi.drop = a.fault_spi_drop;
     opts.faults.spi.torn = a.fault_spi_torn;

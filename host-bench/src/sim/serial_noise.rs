@@ -1,8 +1,9 @@
 //! Noise on one direction of a serial line, frame by frame: the virtual board's fault knob.
 //!
-//! Frames end at a 0x00 byte (COBS). Each whole frame passes, is lost, or has one bit flipped
-//! (which may also split it, if the flip makes a 0x00), at the given rates, drawn from its own
-//! seeded generator so a run can be repeated. A frame's bytes are held until its end arrives,
+//! Frames end at a 0x00 byte (COBS). Each whole frame passes, is lost, has one bit flipped
+//! (which may also split it, if the flip makes a 0x00), arrives twice, or is held back and
+//! arrives after the next frame, at the given rates, drawn from its own seeded generator so a
+//! run can be repeated. A frame's bytes are held until its end arrives,
 //! so a noisy line adds at most one frame of latency; a quiet one passes bytes straight on.
 
 use rand::{Rng, SeedableRng};
@@ -14,33 +15,50 @@ use serde::Serialize;
 pub struct SerialInjected {
     pub corrupted: u64,
     pub dropped: u64,
+    pub duplicated: u64,
+    pub delayed: u64,
+}
+
+/// Rates per frame, each in [0, 1) and together under 1.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SerialFaults {
+    pub corrupt: f64,
+    pub drop: f64,
+    pub duplicate: f64,
+    pub delay: f64,
 }
 
 pub struct SerialNoise {
-    corrupt: f64,
-    drop: f64,
+    faults: SerialFaults,
     rng: ChaCha8Rng,
     frame: Vec<u8>,
+    /// A frame held back, to go out after the next one.
+    held: Option<Vec<u8>>,
     pub injected: SerialInjected,
 }
 
 impl SerialNoise {
-    /// Rates per frame, each in [0, 1).
-    pub fn new(corrupt: f64, drop: f64, seed: u64) -> Self {
+    pub fn new(faults: SerialFaults, seed: u64) -> Self {
         SerialNoise {
-            corrupt,
-            drop,
+            faults,
             rng: ChaCha8Rng::seed_from_u64(seed),
             frame: Vec::new(),
+            held: None,
             injected: SerialInjected::default(),
         }
     }
 
     /// The bytes that come out of the line for `bytes` going in.
     pub fn pass(&mut self, bytes: &[u8]) -> Vec<u8> {
-        if self.corrupt == 0.0 && self.drop == 0.0 {
+        if self.faults == SerialFaults::default() {
             return bytes.to_vec();
         }
+        let SerialFaults {
+            corrupt,
+            drop,
+            duplicate,
+            delay,
+        } = self.faults;
         let mut out = Vec::with_capacity(bytes.len());
         for &b in bytes {
             self.frame.push(b);
@@ -50,17 +68,31 @@ impl SerialNoise {
                 continue;
             }
             let r: f64 = self.rng.random();
-            if r < self.drop {
+            let mut frame = std::mem::take(&mut self.frame);
+            if r < drop {
                 self.injected.dropped += 1;
-            } else {
-                if r < self.drop + self.corrupt && self.frame.len() > 1 {
-                    let i = self.rng.random_range(0..self.frame.len() - 1);
-                    self.frame[i] ^= 1 << self.rng.random_range(0..8);
-                    self.injected.corrupted += 1;
-                }
-                out.extend_from_slice(&self.frame);
+                continue;
             }
-            self.frame.clear();
+            let r = r - drop;
+            if r < corrupt && frame.len() > 1 {
+                let i = self.rng.random_range(0..frame.len() - 1);
+                frame[i] ^= 1 << self.rng.random_range(0..8);
+                self.injected.corrupted += 1;
+            } else if r >= corrupt && r < corrupt + duplicate {
+                self.injected.duplicated += 1;
+                out.extend_from_slice(&frame);
+            } else if r >= corrupt + duplicate
+                && r < corrupt + duplicate + delay
+                && self.held.is_none()
+            {
+                self.injected.delayed += 1;
+                self.held = Some(frame);
+                continue;
+            }
+            out.extend_from_slice(&frame);
+            if let Some(held) = self.held.take() {
+                out.extend_from_slice(&held);
+            }
         }
         out
     }
@@ -76,14 +108,19 @@ mod tests {
 
     #[test]
     fn a_quiet_line_passes_every_byte_at_once() {
-        let mut line = SerialNoise::new(0.0, 0.0, 1);
+        let mut line = SerialNoise::new(SerialFaults::default(), 1);
         assert_eq!(line.pass(&[5, 6]), [5, 6]);
     }
 
     #[test]
     fn frames_are_lost_or_damaged_whole_at_about_their_rates() {
         let input = frames(20_000);
-        let mut line = SerialNoise::new(0.01, 0.05, 7);
+        let faults = SerialFaults {
+            corrupt: 0.01,
+            drop: 0.05,
+            ..Default::default()
+        };
+        let mut line = SerialNoise::new(faults, 7);
         // In pieces that cut frames anywhere: a frame is judged once it is complete.
         let mut out = Vec::new();
         for piece in input.chunks(5) {
@@ -96,5 +133,32 @@ mod tests {
         // One bit of one byte of each damaged frame, never its end.
         let damaged = out.chunks(4).filter(|f| *f != [3, 7, 9, 0]).count();
         assert_eq!(damaged as u64, i.corrupted);
+    }
+
+    #[test]
+    fn duplicated_and_delayed_frames_arrive_twice_or_one_frame_late() {
+        let input: Vec<u8> = (1..=200u8).flat_map(|i| [i, 0]).collect();
+        let faults = SerialFaults {
+            duplicate: 0.05,
+            delay: 0.05,
+            ..Default::default()
+        };
+        let mut line = SerialNoise::new(faults, 3);
+        let out = line.pass(&input);
+        let i = line.injected;
+        assert!(i.duplicated > 2 && i.delayed > 2, "{i:?}");
+        let got: Vec<u8> = out.chunks(2).map(|f| f[0]).collect();
+        // Every frame arrives; a held one at most one frame late.
+        let mut seen: Vec<u8> = got.clone();
+        seen.sort();
+        seen.dedup();
+        assert_eq!(seen.len(), 200 - usize::from(line.held.is_some()));
+        assert_eq!(
+            got.len() as u64,
+            200 + i.duplicated - u64::from(line.held.is_some())
+        );
+        for (k, w) in got.windows(2).enumerate() {
+            assert!(w[1] + 2 >= w[0], "frame {k}: {w:?}");
+        }
     }
 }

@@ -40,7 +40,7 @@ use virtual_time::Simulation;
 
 use super::emulator::hw::*;
 use super::plant::{MeasuringSensors, Plant, PlantConfig};
-use super::serial_noise::SerialNoise;
+use super::serial_noise::{SerialFaults, SerialNoise};
 use robot_math::motor::DcMotor;
 
 /// Fault knobs of the virtual board (for tests of the host's checks and of the links).
@@ -48,9 +48,9 @@ use robot_math::motor::DcMotor;
 pub struct Faults {
     /// Report this schema fingerprint in the hello reply instead of the real one.
     pub schema: Option<u32>,
-    /// Serial noise, per frame, each direction on its own: a bit flipped, or the frame lost.
-    pub serial_corrupt: f64,
-    pub serial_drop: f64,
+    /// Serial noise, per frame, each direction on its own: a bit flipped, the frame lost,
+    /// sent twice, or held back behind the next.
+    pub serial: SerialFaults,
     /// Bit errors and lost transactions on the SPI wire between the boards.
     pub spi: SpiFaults,
 }
@@ -252,8 +252,8 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     let master_shared = MasterShared::new();
     let wire = Rc::new(RefCell::new(SpiWire::new(opts.faults.spi, opts.seed)));
     let f = &opts.faults;
-    let mut noise_to_master = SerialNoise::new(f.serial_corrupt, f.serial_drop, opts.seed ^ 0x5e1a);
-    let mut noise_to_host = SerialNoise::new(f.serial_corrupt, f.serial_drop, opts.seed ^ 0x5e1b);
+    let mut noise_to_master = SerialNoise::new(f.serial, opts.seed ^ 0x5e1a);
+    let mut noise_to_host = SerialNoise::new(f.serial, opts.seed ^ 0x5e1b);
     let to_master: SharedLine = Rc::default();
     let to_host: SharedLine = Rc::default();
     let byte_time = byte_time(opts.master.baud);
