@@ -11,13 +11,17 @@
 //! `plant_step`), then lets the firmware run at that instant, so every sensor read sees the
 //! plant exactly at the time it happens.
 
+mod fault_check;
 pub mod host;
 pub mod hw;
 pub mod reference;
+mod summary;
+
+pub use fault_check::{fault_check, FaultCheck};
+pub use summary::{LogRow, Summary};
 
 use std::cell::RefCell;
 use std::rc::Rc;
-use std::sync::{Arc, Mutex};
 use std::time::Instant as WallInstant;
 
 use anyhow::{bail, Context as _, Result};
@@ -201,176 +205,6 @@ impl Options {
             duties: hw::DutySource::Master,
         }
     }
-}
-
-/// One row of the run log.
-#[derive(Clone, Debug, Serialize)]
-pub struct LogRow {
-    pub t_s: f64,
-    pub true_x_m: f64,
-    pub true_y_m: f64,
-    pub true_theta_rad: f64,
-    pub slave_x_m: f64,
-    pub slave_y_m: f64,
-    pub slave_theta_rad: f64,
-    pub master_x_m: Option<f64>,
-    pub master_y_m: Option<f64>,
-    pub master_theta_rad: Option<f64>,
-    pub target_x_m: Option<f64>,
-    pub target_y_m: Option<f64>,
-    pub wheel_cmd_1_m_s: f64,
-    pub wheel_cmd_2_m_s: f64,
-    pub wheel_cmd_3_m_s: f64,
-    pub duty_1_permille: i16,
-    pub duty_2_permille: i16,
-    pub duty_3_permille: i16,
-    pub status: u16,
-}
-
-/// What `emulate` reports.
-#[derive(Clone, Debug, Serialize)]
-pub struct Summary {
-    pub scenario: String,
-    pub robot: String,
-    /// The slave's odometry algorithm (as the slave reports it).
-    pub algorithm: String,
-    pub seed: u64,
-    /// Where each measuring-wheel encoder stood within its count at power-on, in counts
-    /// ([`Options::encoder_phase`], or drawn from the seed). The slave takes each wheel to
-    /// start on an edge and cannot tell otherwise, so the difference tilts its carriage
-    /// heading by (p1 − p0)·(travel per count)/(wheel base) for the whole run: on
-    /// seed004-pursuit that tilt is nearly all of the final error (docs/odometry.md).
-    pub encoder_phase: [f64; 2],
-    pub sim_seconds: f64,
-    pub wall_seconds: f64,
-    pub path_length_m: f64,
-    /// Slave odometry vs ground truth at the end of the run, metres.
-    pub final_error_m: f64,
-    /// Largest slave odometry error over the run, metres (checked at every slave update from
-    /// the start of the motion, when the host's set-pose has been applied).
-    pub max_error_m: f64,
-    pub final_heading_error_rad: f64,
-    /// Where the slave's odometry says the robot ended, metres.
-    pub final_estimate_m: (f64, f64),
-    /// The slave's heading at the end, radians.
-    pub final_estimate_heading_rad: f64,
-    /// Where the robot really ended, and how far its tracked point is from the goal.
-    pub final_position_m: (f64, f64),
-    pub distance_to_goal_m: f64,
-    /// Seed 002's tracking error: the true tracked point against the reference path at the
-    /// same instant, at every physics step (≤ 0.1 ms) from a second after the path started to
-    /// the end of the run: RMS over time, max, and the steps scored (`None` for a pursuit,
-    /// which has no path to track).
-    pub tracking_rms_m: Option<f64>,
-    pub tracking_max_m: Option<f64>,
-    pub tracking_samples: u64,
-    /// Seconds of the run the tracking error covers.
-    pub tracking_seconds: f64,
-    pub arrived: bool,
-    /// Times the motors went from standing to driven over the whole run, and after the master
-    /// first reported arrival once the target or path had stopped for good (`None` if it
-    /// never did): a controller that holds still at the goal switches them on no more.
-    pub motor_switch_ons: u64,
-    pub motor_switch_ons_after_arrival: Option<u64>,
-    /// Seconds the motors were driven (some duty non-zero) after the master first reported
-    /// arrival: the settling, and nothing while it holds.
-    pub motor_driven_s_after_arrival: Option<f64>,
-    /// SPI transactions the master ran, and frames either side dropped (CRC, decode, idle).
-    pub spi_frames: u64,
-    pub spi_frames_rejected: u64,
-    /// The same, by who dropped them: the master (slave frames) and the slave (master frames).
-    pub spi_rejected_by_master: u64,
-    pub spi_rejected_by_slave: u64,
-    /// What the SPI fault knobs did (all zero in a clean run).
-    pub spi_injected: hw::SpiInjected,
-    /// The frames each board refused, by why, as the wire saw them decoded (they add up to
-    /// `spi_rejected_by_master` and `spi_rejected_by_slave`).
-    pub spi_rejected_kinds_master: hw::SpiRejections,
-    pub spi_rejected_kinds_slave: hw::SpiRejections,
-    /// The slave's pose in the newest frame the master took, and whether it is the slave's own
-    /// at the end, to the micrometre and binary angle: however many frames were lost on the way,
-    /// the odometry's cumulative counts lose nothing.
-    pub master_view_of_slave_m: Option<(f64, f64)>,
-    /// Checked once the robot stands at its goal (`None` before).
-    pub master_view_matches_slave: Option<bool>,
-    /// Serial frames both ways, and frames either side dropped.
-    pub serial_frames: u64,
-    pub serial_frames_rejected: u64,
-    pub protocol_version: u16,
-    pub schema_fingerprint_match: bool,
-    /// This run's robot (its encoders' fingerprint, `robot_wire::layout_fingerprint`) when
-    /// the host uploaded it to the slave over the protocol and the slave reported running it;
-    /// null when the slave powered on with this run's robot.
-    pub robot_uploaded: Option<u32>,
-    pub slave_updates: u64,
-    /// Firmware task polls: a machine-independent measure of the work emulated.
-    pub firmware_polls: u64,
-    /// With link faults: this run against the clean one ([`fault_check`]; null without).
-    pub fault_check: Option<FaultCheck>,
-}
-
-/// A run with link faults against the same run clean.
-///
-/// In the closed loop the two cannot end at the same pose: while frames are lost the master
-/// steers on older ones, so the robot itself moves a little differently. What the links must
-/// not do is lose or corrupt odometry. So the faulty run is made a second time with the robot
-/// driven by the clean run's duties, control step by control step, and the faults on: the
-/// robot then moves exactly as in the clean run, and the slave's pose must end bit for bit
-/// where the clean run's did, and the master's last view of it be the slave's own.
-#[derive(Clone, Debug, Serialize)]
-pub struct FaultCheck {
-    /// The clean run's final slave pose (x, y m; heading rad).
-    pub clean_final_estimate_m: (f64, f64),
-    pub clean_final_estimate_heading_rad: f64,
-    /// How far the faulty closed-loop run's final slave pose is from the clean one's, metres.
-    pub closed_loop_apart_m: f64,
-    /// Faults on, robot driven through the clean run's duties: its final slave pose.
-    pub same_motion_final_estimate_m: (f64, f64),
-    pub same_motion_final_estimate_heading_rad: f64,
-    /// ... equal to the clean run's, every bit of x, y and heading.
-    pub same_motion_equals_clean: bool,
-    pub same_motion_master_view_matches_slave: Option<bool>,
-    /// Bad frames both ways in the same-motion run (all of them counted and dropped).
-    pub same_motion_spi_frames_rejected: u64,
-}
-
-/// [`FaultCheck`] for `faulty`, a closed-loop run of `scenario` with `opts` (whose faults are
-/// on): runs it clean, recording the duties, then faulty again on those duties.
-pub fn fault_check(scenario: &Scenario, opts: &Options, faulty: &Summary) -> Result<FaultCheck> {
-    let duties = Arc::new(Mutex::new(Vec::new()));
-    let clean_opts = Options {
-        faults: Faults::default(),
-        keep_log: false,
-        duties: hw::DutySource::Record(duties.clone()),
-        ..opts.clone()
-    };
-    let clean = run(scenario, &clean_opts)?.summary;
-    let script = std::mem::take(&mut *duties.lock().unwrap_or_else(|e| e.into_inner()));
-    let same_opts = Options {
-        keep_log: false,
-        duties: hw::DutySource::Replay(Arc::new(script)),
-        ..opts.clone()
-    };
-    let same = run(scenario, &same_opts)?.summary;
-    let pose = |s: &Summary| {
-        (
-            s.final_estimate_m.0,
-            s.final_estimate_m.1,
-            s.final_estimate_heading_rad,
-        )
-    };
-    let bits = |(x, y, t): (f64, f64, f64)| [x.to_bits(), y.to_bits(), t.to_bits()];
-    let (cx, cy, _) = pose(&clean);
-    Ok(FaultCheck {
-        clean_final_estimate_m: clean.final_estimate_m,
-        clean_final_estimate_heading_rad: clean.final_estimate_heading_rad,
-        closed_loop_apart_m: (faulty.final_estimate_m.0 - cx).hypot(faulty.final_estimate_m.1 - cy),
-        same_motion_final_estimate_m: same.final_estimate_m,
-        same_motion_final_estimate_heading_rad: same.final_estimate_heading_rad,
-        same_motion_equals_clean: bits(pose(&same)) == bits(pose(&clean)),
-        same_motion_master_view_matches_slave: same.master_view_matches_slave,
-        same_motion_spi_frames_rejected: same.spi_frames_rejected,
-    })
 }
 
 pub struct Run {

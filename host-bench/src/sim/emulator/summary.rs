@@ -1,0 +1,112 @@
+//! What an emulation run reports: its summary, and the rows of its log.
+
+use serde::Serialize;
+
+use super::fault_check::FaultCheck;
+use super::hw;
+
+/// One row of the run log.
+#[derive(Clone, Debug, Serialize)]
+pub struct LogRow {
+    pub t_s: f64,
+    pub true_x_m: f64,
+    pub true_y_m: f64,
+    pub true_theta_rad: f64,
+    pub slave_x_m: f64,
+    pub slave_y_m: f64,
+    pub slave_theta_rad: f64,
+    pub master_x_m: Option<f64>,
+    pub master_y_m: Option<f64>,
+    pub master_theta_rad: Option<f64>,
+    pub target_x_m: Option<f64>,
+    pub target_y_m: Option<f64>,
+    pub wheel_cmd_1_m_s: f64,
+    pub wheel_cmd_2_m_s: f64,
+    pub wheel_cmd_3_m_s: f64,
+    pub duty_1_permille: i16,
+    pub duty_2_permille: i16,
+    pub duty_3_permille: i16,
+    pub status: u16,
+}
+
+/// What `emulate` reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub scenario: String,
+    pub robot: String,
+    /// The slave's odometry algorithm (as the slave reports it).
+    pub algorithm: String,
+    pub seed: u64,
+    /// Where each measuring-wheel encoder stood within its count at power-on, in counts
+    /// ([`Options::encoder_phase`], or drawn from the seed). The slave takes each wheel to
+    /// start on an edge and cannot tell otherwise, so the difference tilts its carriage
+    /// heading by (p1 − p0)·(travel per count)/(wheel base) for the whole run: on
+    /// seed004-pursuit that tilt is nearly all of the final error (docs/odometry.md).
+    pub encoder_phase: [f64; 2],
+    pub sim_seconds: f64,
+    pub wall_seconds: f64,
+    pub path_length_m: f64,
+    /// Slave odometry vs ground truth at the end of the run, metres.
+    pub final_error_m: f64,
+    /// Largest slave odometry error over the run, metres (checked at every slave update from
+    /// the start of the motion, when the host's set-pose has been applied).
+    pub max_error_m: f64,
+    pub final_heading_error_rad: f64,
+    /// Where the slave's odometry says the robot ended, metres.
+    pub final_estimate_m: (f64, f64),
+    /// The slave's heading at the end, radians.
+    pub final_estimate_heading_rad: f64,
+    /// Where the robot really ended, and how far its tracked point is from the goal.
+    pub final_position_m: (f64, f64),
+    pub distance_to_goal_m: f64,
+    /// Seed 002's tracking error: the true tracked point against the reference path at the
+    /// same instant, at every physics step (≤ 0.1 ms) from a second after the path started to
+    /// the end of the run: RMS over time, max, and the steps scored (`None` for a pursuit,
+    /// which has no path to track).
+    pub tracking_rms_m: Option<f64>,
+    pub tracking_max_m: Option<f64>,
+    pub tracking_samples: u64,
+    /// Seconds of the run the tracking error covers.
+    pub tracking_seconds: f64,
+    pub arrived: bool,
+    /// Times the motors went from standing to driven over the whole run, and after the master
+    /// first reported arrival once the target or path had stopped for good (`None` if it
+    /// never did): a controller that holds still at the goal switches them on no more.
+    pub motor_switch_ons: u64,
+    pub motor_switch_ons_after_arrival: Option<u64>,
+    /// Seconds the motors were driven (some duty non-zero) after the master first reported
+    /// arrival: the settling, and nothing while it holds.
+    pub motor_driven_s_after_arrival: Option<f64>,
+    /// SPI transactions the master ran, and frames either side dropped (CRC, decode, idle).
+    pub spi_frames: u64,
+    pub spi_frames_rejected: u64,
+    /// The same, by who dropped them: the master (slave frames) and the slave (master frames).
+    pub spi_rejected_by_master: u64,
+    pub spi_rejected_by_slave: u64,
+    /// What the SPI fault knobs did (all zero in a clean run).
+    pub spi_injected: hw::SpiInjected,
+    /// The frames each board refused, by why, as the wire saw them decoded (they add up to
+    /// `spi_rejected_by_master` and `spi_rejected_by_slave`).
+    pub spi_rejected_kinds_master: hw::SpiRejections,
+    pub spi_rejected_kinds_slave: hw::SpiRejections,
+    /// The slave's pose in the newest frame the master took, and whether it is the slave's own
+    /// at the end, to the micrometre and binary angle: however many frames were lost on the way,
+    /// the odometry's cumulative counts lose nothing.
+    pub master_view_of_slave_m: Option<(f64, f64)>,
+    /// Checked once the robot stands at its goal (`None` before).
+    pub master_view_matches_slave: Option<bool>,
+    /// Serial frames both ways, and frames either side dropped.
+    pub serial_frames: u64,
+    pub serial_frames_rejected: u64,
+    pub protocol_version: u16,
+    pub schema_fingerprint_match: bool,
+    /// This run's robot (its encoders' fingerprint, `robot_wire::layout_fingerprint`) when
+    /// the host uploaded it to the slave over the protocol and the slave reported running it;
+    /// null when the slave powered on with this run's robot.
+    pub robot_uploaded: Option<u32>,
+    pub slave_updates: u64,
+    /// Firmware task polls: a machine-independent measure of the work emulated.
+    pub firmware_polls: u64,
+    /// With link faults: this run against the clean one ([`fault_check`]; null without).
+    pub fault_check: Option<FaultCheck>,
+}
