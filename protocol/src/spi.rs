@@ -26,9 +26,6 @@ pub const SPI_CHECK_LEN: usize = 4;
 /// Bytes available to the postcard payload (after the kind byte, before the check).
 pub const SPI_PAYLOAD_LEN: usize = SPI_FRAME_LEN - 1 - SPI_CHECK_LEN;
 
-/// The same CRC-32 as the serial frames and the fingerprints (one table in each image).
-const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
-
 /// Incremental encoders a slave can be given (the board counts two in hardware; played
 /// streams may carry up to this many, e.g. seed 000's triangle).
 pub const ENCODER_SLOTS: usize = 4;
@@ -144,7 +141,7 @@ pub const REPORT_SENSOR_BYTES: usize = 40;
 /// heading, as `robot_math::exact::FixedPose` holds them): CRC-32 over their little-endian
 /// bytes. Equal digests at every update is how `play` shows the board computed the same bits.
 pub fn pose_digest(x: i64, y: i64, theta: u64) -> u32 {
-    let mut d = crate::FINGERPRINT_CRC.digest();
+    let mut d = crate::CRC32.digest();
     d.update(&x.to_le_bytes());
     d.update(&y.to_le_bytes());
     d.update(&theta.to_le_bytes());
@@ -270,7 +267,7 @@ pub fn encode<T: SpiFrame>(frame: &T) -> [u8; SPI_FRAME_LEN] {
     // Cannot fail: every frame type's maximum size is checked against the payload at compile
     // time above; a failure would leave a zero payload, which then fails to decode.
     let _ = postcard::to_slice(frame, &mut out[1..1 + SPI_PAYLOAD_LEN]);
-    let crc = CRC.checksum(&out[..SPI_FRAME_LEN - SPI_CHECK_LEN]);
+    let crc = crate::CRC32.checksum(&out[..SPI_FRAME_LEN - SPI_CHECK_LEN]);
     out[SPI_FRAME_LEN - SPI_CHECK_LEN..].copy_from_slice(&crc.to_le_bytes());
     out
 }
@@ -278,7 +275,7 @@ pub fn encode<T: SpiFrame>(frame: &T) -> [u8; SPI_FRAME_LEN] {
 /// Check and decode a received fixed-size frame.
 pub fn decode<T: SpiFrame>(bytes: &[u8; SPI_FRAME_LEN]) -> Result<T, SpiFrameError> {
     let (body, check) = bytes.split_at(SPI_FRAME_LEN - SPI_CHECK_LEN);
-    if CRC.checksum(body).to_le_bytes() != *check {
+    if crate::CRC32.checksum(body).to_le_bytes() != *check {
         return Err(SpiFrameError::Crc);
     }
     if body[0] != T::KIND {

@@ -101,9 +101,21 @@ impl DcMotor {
         net / self.damping() * self.wheel_radius_m
     }
 
+    /// The factor by which a speed's distance from its steady value shrinks in `h` seconds:
+    /// what [`speed_after_decay`](Self::speed_after_decay) takes, so a simulation stepping on
+    /// a fixed step pays for the exponential once, not per wheel and stage.
+    pub fn decay(&self, h: f64) -> f64 {
+        libm::exp(-h / self.time_constant_s())
+    }
+
     /// Rim speed after `h` seconds at `duty`, from rim speed `v0` (m/s): the exact solution,
     /// stopping (and sticking) where the speed would cross zero.
     pub fn speed_after(&self, v0: f64, duty: f64, h: f64) -> f64 {
+        self.speed_after_decay(v0, duty, self.decay(h))
+    }
+
+    /// [`speed_after`](Self::speed_after) for a step whose [`decay`](Self::decay) is known.
+    pub fn speed_after_decay(&self, v0: f64, duty: f64, decay: f64) -> f64 {
         let r = self.wheel_radius_m;
         let drive = self.drive_torque(duty);
         let w0 = v0 / r;
@@ -116,9 +128,8 @@ impl DcMotor {
         if w0 == 0.0 && libm::fabs(drive) <= self.coulomb_nm {
             return 0.0; // stiction holds it
         }
-        let tau = self.time_constant_s();
         let w_ss = (drive - self.coulomb_nm * moving) / self.damping();
-        let w = w_ss + (w0 - w_ss) * libm::exp(-h / tau);
+        let w = w_ss + (w0 - w_ss) * decay;
         // Friction cannot reverse a wheel: crossing zero, it stops (until the next step, which
         // starts from rest and asks whether the drive beats the friction).
         if w0 != 0.0 && w * w0 < 0.0 {

@@ -46,7 +46,7 @@ pub fn summary_text(s: &Summary) -> String {
         seed = s.seed,
         sim = s.sim_seconds,
         wall = s.wall_seconds,
-        speed = s.sim_seconds / s.wall_seconds.max(1e-9),
+        speed = s.speed_x,
         path = s.path_length_m,
         fe = s.final_error_m * 1e3,
         me = s.max_error_m * 1e3,

@@ -261,7 +261,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     sim.spawn(async {
         firmware_slave::run(
             EmuCounters(plant.clone()),
-            EmuEdges(plant.clone()),
+            EmuEdges::new(plant.clone()),
             EmuAbsEncoder(plant.clone()),
             EmuSlaveSpi(wire.clone()),
             &slave_shared,

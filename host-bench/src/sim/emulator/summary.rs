@@ -44,7 +44,10 @@ pub struct Summary {
     /// seed004-pursuit that tilt is nearly all of the final error (docs/odometry.md).
     pub encoder_phase: [f64; 2],
     pub sim_seconds: f64,
+    /// Wall-clock seconds the run took (the run alone: no start-up, no output).
     pub wall_seconds: f64,
+    /// Simulated seconds per wall-clock second: `sim_seconds / wall_seconds`.
+    pub speed_x: f64,
     pub path_length_m: f64,
     /// Slave odometry vs ground truth at the end of the run, metres.
     pub final_error_m: f64,
