@@ -69,6 +69,29 @@ impl SlaveConfig {
     }
 }
 
+/// The slave's clock as its frames show it (`time_us`, `armed_us`): microseconds since this
+/// firmware started, wrapping at 32 bits, as the board's timer counts from reset. The master
+/// tells a restarted slave by this clock starting again. In emulation both boards share one
+/// virtual clock, and counting from the start is what makes a restarted slave's clock restart.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameClock {
+    start: Instant,
+}
+
+impl FrameClock {
+    /// The clock starting now.
+    pub fn start() -> Self {
+        FrameClock {
+            start: Instant::now(),
+        }
+    }
+
+    /// `t` on this clock.
+    pub fn us(&self, t: Instant) -> u32 {
+        t.as_micros().wrapping_sub(self.start.as_micros()) as u32
+    }
+}
+
 /// Run the slave firmware forever.
 pub async fn run(
     counters: impl QuadratureCounters,
@@ -78,20 +101,21 @@ pub async fn run(
     shared: &SlaveShared,
     config: &SlaveConfig,
 ) -> ! {
+    let clock = FrameClock::start();
     join(
-        odometry_task(counters, edges, abs, shared, config),
-        spi_task(spi, shared),
+        odometry_task(counters, edges, abs, shared, config, clock),
+        spi_task(spi, shared, clock),
     )
     .await
     .0
 }
 
 /// Answer the master's polls: arm the latest frame, check what came back.
-pub async fn spi_task(mut spi: impl SpiSlave, shared: &SlaveShared) -> ! {
+pub async fn spi_task(mut spi: impl SpiSlave, shared: &SlaveShared, clock: FrameClock) -> ! {
     let mut rx = [0u8; SPI_FRAME_LEN];
     loop {
         let mut frame = shared.frame_to_arm();
-        frame.armed_us = Instant::now().as_micros() as u32;
+        frame.armed_us = clock.us(Instant::now());
         let tx = spi::encode(&frame);
         match spi.exchange(&tx, &mut rx).await {
             Ok(()) => match spi::decode::<MasterFrame>(&rx) {

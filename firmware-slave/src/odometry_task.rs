@@ -93,6 +93,7 @@ pub async fn odometry_task(
     mut abs: impl AbsoluteEncoderPins,
     shared: &SlaveShared,
     config: &SlaveConfig,
+    clock: crate::FrameClock,
 ) -> ! {
     let period = Duration::from_micros(config.update_period_us as u64);
     let (raw, edge_levels) = if config.sensor == SensorMode::TickTimestamps {
@@ -298,7 +299,7 @@ pub async fn odometry_task(
         seq = seq.wrapping_add(1);
         let frame = SlaveFrame {
             seq,
-            time_us: now.as_micros() as u32,
+            time_us: clock.us(now),
             pose: wire_pose(pose),
             status: status | sticky,
             algorithm,

@@ -115,6 +115,13 @@ impl SlaveShared {
         }
     }
 
+    /// Back to the power-on state: what a reset leaves of RAM (the emulator's slave reset;
+    /// on the board the `static` starts this way).
+    pub fn restart(&self) {
+        let fresh = SlaveShared::new().state.into_inner().into_inner();
+        self.with(|s| *s = fresh);
+    }
+
     fn with<R>(&self, f: impl FnOnce(&mut State) -> R) -> R {
         self.state.lock(|s| f(&mut s.borrow_mut()))
     }

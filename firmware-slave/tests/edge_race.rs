@@ -122,6 +122,7 @@ fn run(stale_counters: bool) -> (u16, f64, i64) {
         Abs(board.clone()),
         &shared,
         &config,
+        firmware_slave::FrameClock::start(),
     );
     sim.spawn(async move {
         task.await;

@@ -63,6 +63,11 @@ enum Command {
         /// Fault injection: cut the slave's power at this simulated time (seconds).
         #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
         fault_slave_off_at: Option<f64>,
+        /// Fault injection: reset the slave at this simulated time (seconds). It starts again
+        /// 5 ms later from power-on (its pose, clock and settings as at power-on); the master
+        /// must tell, stop the motors and report SLAVE_RESET to the host.
+        #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
+        fault_slave_reset_at: Option<f64>,
         /// Fault injection: the host goes silent at this simulated time (seconds).
         #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
         fault_host_silent_after: Option<f64>,
@@ -230,6 +235,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             encoder_phase,
             fault_slave_off_at,
+            fault_slave_reset_at,
             fault_host_silent_after,
             fault_spi_corrupt,
             fault_spi_drop,
@@ -262,6 +268,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             opts.encoder_phase = encoder_phase.or(opts.encoder_phase);
             let f = &mut opts.faults;
             f.slave_off_at = fault_slave_off_at.or(f.slave_off_at);
+            f.slave_reset_at = fault_slave_reset_at.or(f.slave_reset_at);
             f.host_silent_after = fault_host_silent_after.or(f.host_silent_after);
             f.spi.corrupt = fault_spi_corrupt.unwrap_or(f.spi.corrupt);
             f.spi.drop = fault_spi_drop.unwrap_or(f.spi.drop);

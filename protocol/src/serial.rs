@@ -231,6 +231,10 @@ pub mod status {
     pub const COMMAND_REJECTED: u16 = 1 << 5;
     /// The slave reports a fault (see `spi::slave_status`).
     pub const SLAVE_FAULT: u16 = 1 << 6;
+    /// The slave restarted (its clock did): its pose starts again from its power-on pose and
+    /// its settings are its power-on ones. Motors stopped; goals are ignored until the host
+    /// sets the pose again (which clears this), having sent again whatever else it had set.
+    pub const SLAVE_RESET: u16 = 1 << 7;
 }
 
 const _: () = assert!(HostToMaster::POSTCARD_MAX_SIZE <= MAX_PAYLOAD);

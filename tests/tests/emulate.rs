@@ -53,6 +53,7 @@ fn default_scenario_reaches_the_goal_with_accurate_odometry() {
     assert_eq!(s.spi_frames_rejected, 0, "{s:?}");
     assert_eq!(s.serial_frames_rejected, 0, "{s:?}");
     assert!(s.schema_fingerprint_match);
+    assert_eq!(s.slave_reset_told_s, None, "no reset, none told");
     // The slave integrated at its fixed 1 kHz the whole time.
     assert!((11_990..=12_001).contains(&s.slave_updates), "{s:?}");
 }
@@ -201,6 +202,43 @@ fn losing_the_slave_stops_the_motors_within_the_link_timeout() {
     );
 }
 
+/// A slave reset mid-run (issue 10): 5 ms later the slave runs again from power-on, its pose
+/// back at its power-on pose. The master must tell (by the slave's clock starting again),
+/// stop the motors at its next control step, say so to the host, and not drive on the reset
+/// pose, though the host's goal stands.
+#[test]
+fn a_slave_reset_mid_run_stops_the_motors_and_the_host_is_told() {
+    use host_bench::sim::emulator::SLAVE_BOOT_S;
+    let run = run_default(1, |o| o.faults.slave_reset_at = Some(3.0));
+    let s = &run.summary;
+    let cfg = firmware_master::MasterConfig::DEFAULT;
+    let poll_s = cfg.poll_period_us as f64 * 1e-6;
+    let told = s.slave_reset_told_s.expect("the master tells");
+    // Booted, then two good exchanges for the clocks' new offset.
+    assert!(
+        told > 3.0 + SLAVE_BOOT_S && told <= 3.0 + SLAVE_BOOT_S + 3.0 * poll_s + 1e-9,
+        "told at {told}"
+    );
+    let r = s.slave_reset.expect("the reset is reported");
+    let stopped = r.motors_stopped_s.expect("the motors stop");
+    assert!(
+        stopped <= told + cfg.control_period_us as f64 * 1e-6 + 1e-9,
+        "stopped at {stopped}, told at {told}"
+    );
+    let host = r.host_told_s.expect("the host is told");
+    assert!(host >= told && host <= told + 0.1, "host told at {host}");
+    // Never driven again, and the status says why.
+    assert_eq!(s.motor_switch_ons, 1);
+    assert!(!s.arrived);
+    let last = run.log.last().unwrap();
+    assert_ne!(last.status & protocol::serial::status::SLAVE_RESET, 0);
+    assert_eq!(last.status & protocol::serial::status::MOTORS_ON, 0);
+    // Scored up to the reset, the slave was as accurate as ever; after it, its pose is its
+    // power-on pose, metres from the robot.
+    assert!(s.max_error_m < FINAL_ERROR_BOUND_M, "{s:?}");
+    assert!(s.final_error_m > 0.5, "{s:?}");
+}
+
 #[test]
 fn a_silent_host_stops_the_motors_within_the_host_timeout() {
     let run = run_default(1, |o| o.faults.host_silent_after = Some(3.0));
@@ -331,6 +369,8 @@ fn spi_bit_errors_and_lost_transactions_lose_nothing() {
         (Some(true), Some(true))
     );
     assert_eq!(clean.spi_frames_rejected, 0);
+    // Lost and bad frames never pass for a restarted slave (their clock stamps are skipped).
+    assert_eq!(faulty.slave_reset_told_s, None);
     assert!(faulty.arrived && faulty.distance_to_goal_m < GOAL_TOLERANCE_M);
     assert!(faulty.final_error_m < FINAL_ERROR_BOUND_M && faulty.max_error_m < FINAL_ERROR_BOUND_M);
     let (a, b) = (clean.final_estimate_m, faulty.final_estimate_m);

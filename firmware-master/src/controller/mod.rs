@@ -162,7 +162,10 @@ impl Controller {
                 self.relay.on_host_ack(a, now.as_micros());
                 None
             }
-            HostToMaster::SetPose(p) => self.queue_for_slave(SlaveCommand::SetPose(p)),
+            HostToMaster::SetPose(p) => {
+                self.status &= !status::SLAVE_RESET;
+                self.queue_for_slave(SlaveCommand::SetPose(p))
+            }
             HostToMaster::SetOdometry(a) => self.queue_for_slave(SlaveCommand::SetAlgorithm(a)),
             HostToMaster::FollowTarget(t) => match self.validate(now, &t) {
                 Some(goal) => {
@@ -213,6 +216,9 @@ impl Controller {
     /// Take a new goal. The same standing goal again (a host that refreshes its target, or
     /// keeps sending a path's last sample) keeps a hold; anything else starts over.
     fn set_goal(&mut self, goal: Goal) {
+        if self.status & status::SLAVE_RESET != 0 {
+            return; // the slave's pose is not where the robot is (status::SLAVE_RESET)
+        }
         let holds = self.drive.kinematics.holds_heading();
         let same = matches!(
             (self.goal.and_then(|g| g.standing_at(holds)), goal.standing_at(holds)),
@@ -298,7 +304,19 @@ impl Controller {
         self.counters.spi_ok = self.counters.spi_ok.wrapping_add(1);
         self.prev_good_exchange_end = Some(now);
         if let Some(armed_at) = armed_at {
-            self.slave_clock_offset = Some((armed_at.as_micros() as u32).wrapping_sub(f.armed_us));
+            let offset = (armed_at.as_micros() as u32).wrapping_sub(f.armed_us);
+            // The boards' crystals drift by parts per million: an offset that jumps by
+            // milliseconds means the slave's clock started again, so the slave did (a
+            // brown-out, its watchdog, a flash). Its pose is its power-on pose now: never
+            // steer on it.
+            if self
+                .slave_clock_offset
+                .is_some_and(|old| (offset.wrapping_sub(old) as i32).unsigned_abs() > 2_000)
+            {
+                self.slave = None;
+                self.stop_following(status::SLAVE_RESET);
+            }
+            self.slave_clock_offset = Some(offset);
         }
         self.slave_latest = Some(f);
         self.counters.slave_rx_rejected = f.rx_rejected as u32;

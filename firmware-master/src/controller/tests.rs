@@ -21,6 +21,21 @@ fn slave_frame(seq: u16, ack: u8, x_um: i32) -> SlaveFrame {
     }
 }
 
+/// Hand the master `f` as it arrives at `ms`, stamped as a live slave stamps it: its clock runs
+/// with the master's, and it armed the frame right after the exchange before, here 1 µs
+/// earlier (two polls, the first bringing the same pose), so the pose is as fresh as these
+/// hand-made poses mean it to be and the clocks' offset stays put.
+fn poll_now(c: &mut Controller, ms: u64, mut f: SlaveFrame) {
+    let now = ms * 1000;
+    let armed_before = c.prev_good_exchange_end.map_or(now - 2, |t| t.as_micros());
+    f.armed_us = armed_before as u32;
+    f.time_us = f.armed_us;
+    c.on_slave_frame(Instant::from_micros(now - 1), Ok(f));
+    f.armed_us = (now - 1) as u32;
+    f.time_us = f.armed_us;
+    c.on_slave_frame(t(ms), Ok(f));
+}
+
 fn follow(speed_um_s: u32) -> HostToMaster {
     HostToMaster::FollowTarget(MovingTarget {
         from: Point {
@@ -68,7 +83,7 @@ fn at_the_goal_the_motors_switch_off_and_stay_off_until_pushed_away() {
         seq += 1;
         let mut f = slave_frame(seq, 0, x_um);
         f.pose.heading = BinaryAngle(heading);
-        c.on_slave_frame(t(ms), Ok(f));
+        poll_now(c, ms, f);
         c.on_host_message(t(ms), HostToMaster::Heartbeat);
         c.control(t(ms))
     };
@@ -119,7 +134,7 @@ fn at_the_goal_the_motors_switch_off_and_stay_off_until_pushed_away() {
 /// One control step at `ms` with the slave reporting the robot at `x_um` (a fresh frame: its
 /// sequence number from the time, every 10 ms) and the host still there.
 fn at(c: &mut Controller, ms: u64, x_um: i32) -> Drive {
-    c.on_slave_frame(t(ms), Ok(slave_frame((ms / 10) as u16, 0, x_um)));
+    poll_now(c, ms, slave_frame((ms / 10) as u16, 0, x_um));
     c.on_host_message(t(ms), HostToMaster::Heartbeat);
     c.control(t(ms))
 }
@@ -313,12 +328,48 @@ fn frame_age_comes_from_the_slave_clock() {
     f.time_us = 1_008_000 - 100;
     c.on_slave_frame(t(2_010), Ok(f));
     assert_eq!(c.slave.unwrap().1.as_micros(), 2_008_000 - 100);
+    assert_eq!(c.status() & status::SLAVE_RESET, 0);
     // A slave reboot (its clock back near zero) must not produce an absurd age.
     let mut f = slave_frame(5, 0, 0);
     f.time_us = 5;
     f.armed_us = 3;
     c.on_slave_frame(t(2_012), Ok(f));
     assert_eq!(c.slave.unwrap().1.as_micros(), 2_012_000);
+    assert_ne!(c.status() & status::SLAVE_RESET, 0);
+}
+
+/// Polls every 2 ms; the slave arms each frame `lag_us` after the exchange before ends, on a
+/// clock `behind_us` behind the master's.
+fn poll(c: &mut Controller, ms: u64, seq: u16, behind_us: u64, lag_us: u64) {
+    let mut f = slave_frame(seq, 0, 0);
+    f.armed_us = (ms * 1000 - 2000 + lag_us).wrapping_sub(behind_us) as u32;
+    f.time_us = f.armed_us.wrapping_sub(500);
+    c.on_slave_frame(t(ms), Ok(f));
+}
+
+#[test]
+fn a_slave_whose_clock_starts_again_was_reset_the_motors_stop_until_the_pose_is_set() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    // Arming late by up to a millisecond (a long odometry update first) is no reset.
+    for (i, lag) in [0, 900, 0, 1000, 10].into_iter().enumerate() {
+        poll(&mut c, 100 + 2 * i as u64, i as u16 + 1, 40_000_000, lag);
+    }
+    assert!(matches!(c.control(t(109)), Drive::Duty(_)));
+    assert_eq!(c.status() & status::SLAVE_RESET, 0);
+    // The slave restarted at 110 ms: its clock reads 2 ms at the master's 112 ms.
+    poll(&mut c, 112, 1, 110_000, 0);
+    poll(&mut c, 114, 2, 110_000, 0);
+    assert_ne!(c.status() & status::SLAVE_RESET, 0);
+    assert_eq!(c.status() & status::FOLLOWING, 0);
+    assert_eq!(c.control(t(115)), Drive::Stop);
+    // Its pose is its power-on pose: a goal is ignored until the host sets the pose again.
+    c.on_host_message(t(116), follow(500_000));
+    assert_eq!(c.control(t(117)), Drive::Stop);
+    c.on_host_message(t(118), HostToMaster::SetPose(Pose::default()));
+    assert_eq!(c.status() & status::SLAVE_RESET, 0);
+    c.on_host_message(t(119), follow(500_000));
+    assert_ne!(c.status() & status::FOLLOWING, 0);
 }
 
 #[test]

@@ -125,7 +125,29 @@ pub fn summary_text(s: &Summary) -> String {
         ),
         None => String::new(),
     };
-    text + &tracking + &faults
+    let reset = match &s.slave_reset {
+        Some(r) => {
+            let after = |t: Option<f64>| {
+                t.map_or("NEVER".to_string(), |t| {
+                    format!("{:.1} ms after", (t - r.at_s) * 1e3)
+                })
+            };
+            format!(
+                "slave reset     at {:.3} s: the master told {}, stopped the motors {}, the host read it {} (the slave's pose since is its power-on pose: the max error above is up to the reset)\n",
+                r.at_s,
+                after(s.slave_reset_told_s),
+                after(r.motors_stopped_s),
+                after(r.host_told_s),
+            )
+        }
+        None => match s.slave_reset_told_s {
+            Some(t) => format!(
+                "slave reset     the master reported one at {t:.3} s, but none was injected\n"
+            ),
+            None => String::new(),
+        },
+    };
+    text + &tracking + &faults + &reset
 }
 
 /// Most log rows drawn in `path.svg`: the plot thins a longer log evenly (every row still

@@ -98,6 +98,7 @@ struct RawNoise {
 #[serde(deny_unknown_fields)]
 struct RawFaults {
     slave_off_at_s: Option<Spanned<f64>>,
+    slave_reset_at_s: Option<Spanned<f64>>,
     host_silent_after_s: Option<Spanned<f64>>,
     spi_corrupt: Option<Spanned<f64>>,
     spi_drop: Option<Spanned<f64>>,
@@ -285,6 +286,9 @@ impl TomlFile<'_> {
         if let Some(f) = &raw.faults {
             if let Some(v) = &f.slave_off_at_s {
                 faults.slave_off_at = Some(self.non_negative(v, "faults.slave_off_at_s")?);
+            }
+            if let Some(v) = &f.slave_reset_at_s {
+                faults.slave_reset_at = Some(self.non_negative(v, "faults.slave_reset_at_s")?);
             }
             if let Some(v) = &f.host_silent_after_s {
                 faults.host_silent_after =

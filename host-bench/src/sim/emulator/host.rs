@@ -28,6 +28,8 @@ pub struct HostLog {
     /// The robot uploaded to the slave, once the slave reported running it.
     pub robot_uploaded: Option<u32>,
     pub last_telemetry: Option<Telemetry>,
+    /// Virtual time (s) the master's telemetry first said the slave had restarted.
+    pub slave_reset_told_at: Option<f64>,
     /// Virtual time (s) the motion started: the follow-target command was sent, or the
     /// tracked path's first sample.
     pub follow_sent_at: Option<f64>,
@@ -259,7 +261,14 @@ async fn read_loop(mut rx: impl Read, log: Rc<RefCell<HostLog>>) {
                                 ));
                             }
                         }
-                        MasterToHost::Telemetry(t) => l.last_telemetry = Some(t),
+                        MasterToHost::Telemetry(t) => {
+                            if t.status & protocol::serial::status::SLAVE_RESET != 0 {
+                                l.slave_reset_told_at.get_or_insert(
+                                    embassy_time::Instant::now().as_micros() as f64 * 1e-6,
+                                );
+                            }
+                            l.last_telemetry = Some(t);
+                        }
                         MasterToHost::Rejected(r) => {
                             l.problem = Some(format!("master rejected a command: {r:?}"))
                         }

@@ -276,6 +276,11 @@ impl SpiWire {
         self.delivered = None;
         self.slave_waker = None;
     }
+
+    /// The slave has power again (it boots, then arms its first frame).
+    pub fn power_on(&mut self) {
+        self.powered = true;
+    }
 }
 
 pub struct EmuSlaveSpi(pub Rc<RefCell<SpiWire>>);

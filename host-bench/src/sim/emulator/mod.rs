@@ -18,7 +18,7 @@ pub mod reference;
 mod summary;
 
 pub use fault_check::{fault_check, FaultCheck};
-pub use summary::{LogRow, Summary};
+pub use summary::{LogRow, SlaveResetSeen, Summary};
 
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -175,6 +175,9 @@ pub struct Options {
 pub struct Faults {
     /// The slave loses power: its firmware stops and it answers no more polls.
     pub slave_off_at: Option<f64>,
+    /// The slave resets: its firmware stops and, [`SLAVE_BOOT_S`] later, starts again from
+    /// power-on (its RAM, clock and counters cleared).
+    pub slave_reset_at: Option<f64>,
     /// The host stops sending anything (cable pulled, host program hung).
     pub host_silent_after: Option<f64>,
     /// Bit errors and lost transactions on the SPI wire, at rates per transaction.
@@ -244,6 +247,7 @@ pub fn check_options(opts: &Options) -> Result<()> {
     }
     for (name, at) in [
         ("--fault-slave-off-at", opts.faults.slave_off_at),
+        ("--fault-slave-reset-at", opts.faults.slave_reset_at),
         ("--fault-host-silent-after", opts.faults.host_silent_after),
     ] {
         if let Some(t) = at.filter(|t| !(*t >= 0.0 && t.is_finite())) {
@@ -316,18 +320,31 @@ pub fn run_logged(
     let byte_time = byte_time(opts.baud);
 
     let slave_off = opts.faults.slave_off_at.map(secs_to_instant);
+    let slave_reset = opts.faults.slave_reset_at.map(secs_to_instant);
     let mut sim = Simulation::new()?;
     sim.spawn(async {
-        let slave = firmware_slave::run(
-            EmuCounters(plant.clone()),
-            EmuEdges::new(plant.clone()),
-            EmuAbsEncoder(plant.clone()),
-            EmuSlaveSpi(wire.clone()),
-            &slave_shared,
-            &opts.slave,
-        );
+        let slave = || {
+            firmware_slave::run(
+                EmuCounters(plant.clone()),
+                EmuEdges::new(plant.clone()),
+                EmuAbsEncoder(plant.clone()),
+                EmuSlaveSpi(wire.clone()),
+                &slave_shared,
+                &opts.slave,
+            )
+        };
+        // A reset before any power loss: the CPU stops, RAM and the shift register are gone,
+        // and after its boot time the firmware starts again from power-on.
+        if let Some(reset) = slave_reset.filter(|r| slave_off.is_none_or(|off| *r < off)) {
+            until(Some(reset), slave()).await;
+            wire.borrow_mut().power_off();
+            slave_shared.restart();
+            embassy_time::Timer::at(reset + Duration::from_micros((SLAVE_BOOT_S * 1e6) as u64))
+                .await;
+            wire.borrow_mut().power_on();
+        }
         // Power loss: the firmware future is dropped mid-flight, like a CPU that stops.
-        until(slave_off, slave).await;
+        until(slave_off, slave()).await;
         wire.borrow_mut().power_off();
     });
     sim.spawn(async {
@@ -390,6 +407,11 @@ pub fn run_logged(
     // The slave counts the master frames it rejected in a wrapping u16 (its frame's field):
     // added up here as they go, so a long noisy run does not wrap.
     let mut slave_rejects = (0u16, 0u64);
+    let mut reset_told = None;
+    let mut reset_seen = opts.faults.slave_reset_at.map(|at_s| SlaveResetSeen {
+        at_s,
+        ..SlaveResetSeen::default()
+    });
 
     sim.run_until_idle();
     loop {
@@ -416,7 +438,8 @@ pub fn run_logged(
         if last_seq != Some(frame.seq) {
             last_seq = Some(frame.seq);
             slave_updates += 1;
-            if host_log.borrow().follow_sent_at.is_some() {
+            let reset = reset_seen.is_some_and(|r| next.as_micros() as f64 * 1e-6 >= r.at_s);
+            if host_log.borrow().follow_sent_at.is_some() && !reset {
                 let err = slave_shared.pose().distance_to(plant.borrow().body());
                 max_error = max_error.max(err);
             }
@@ -449,6 +472,22 @@ pub fn run_logged(
         {
             let p = plant.borrow();
             at_arrival = Some((p.motor_switch_ons(), p.motor_driven_s()));
+        }
+        if reset_told.is_none()
+            && master_shared.with(|c| c.status()).unwrap_or(0)
+                & protocol::serial::status::SLAVE_RESET
+                != 0
+        {
+            reset_told = Some(next.as_micros() as f64 * 1e-6);
+        }
+        if let Some(r) = reset_seen
+            .as_mut()
+            .filter(|r| next.as_micros() as f64 * 1e-6 >= r.at_s)
+        {
+            let t_s = next.as_micros() as f64 * 1e-6;
+            if plant.borrow().duty() == [0; 3] {
+                r.motors_stopped_s.get_or_insert(t_s);
+            }
         }
         if let Some(sink) = log.as_mut().filter(|_| next >= next_log) {
             next_log = next + log_every;
@@ -539,6 +578,11 @@ pub fn run_logged(
         robot_uploaded: h.robot_uploaded,
         slave_updates,
         firmware_polls: sim.polls(),
+        slave_reset_told_s: reset_told,
+        slave_reset: reset_seen.map(|r| SlaveResetSeen {
+            host_told_s: h.slave_reset_told_at,
+            ..r
+        }),
         fault_check: None,
     };
     if let Some(problem) = &h.problem {
@@ -570,6 +614,10 @@ pub const MAX_DURATION_S: f64 = 7.0 * 86_400.0;
 /// The tracking error is scored from this long after the path starts (the robot may start
 /// off it), seconds.
 pub const TRACKING_SCORED_AFTER_S: f64 = 1.0;
+
+/// How long a reset slave takes to run again: the F103's reset, its clock start-up (the
+/// crystal and PLL) and embassy's init, about 5 ms.
+pub const SLAVE_BOOT_S: f64 = 0.005;
 
 fn secs_to_instant(s: f64) -> Instant {
     Instant::from_micros((s.max(0.0) * 1e6).round() as u64)

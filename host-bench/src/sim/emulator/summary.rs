@@ -110,6 +110,23 @@ pub struct Summary {
     pub slave_updates: u64,
     /// Firmware task polls: a machine-independent measure of the work emulated.
     pub firmware_polls: u64,
+    /// When the master's status first showed SLAVE_RESET (it tells a restarted slave by its
+    /// clock starting again), seconds of simulated time: null unless the slave was reset.
+    pub slave_reset_told_s: Option<f64>,
+    /// What followed a slave reset (`--fault-slave-reset-at`), if there was one.
+    pub slave_reset: Option<SlaveResetSeen>,
     /// With link faults: this run against the clean one ([`fault_check`]; null without).
     pub fault_check: Option<FaultCheck>,
+}
+
+/// A slave reset and what the boards made of it, in seconds of simulated time. After the
+/// reset the slave's pose starts again from its power-on pose, so `max_error_m` is scored up
+/// to the reset only, and `final_error_m` is that of the restarted slave.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct SlaveResetSeen {
+    pub at_s: f64,
+    /// When the host first read it in the master's telemetry.
+    pub host_told_s: Option<f64>,
+    /// When, after the reset, the motors first stood (every duty 0).
+    pub motors_stopped_s: Option<f64>,
 }
