@@ -373,6 +373,33 @@ fn another_schema_is_refused_and_says_which() {
     assert!(msg.contains("deadbeef") && msg.contains("schema"), "{msg}");
 }
 
+/// A slave reset in the middle of a recording (issue 10): the master ends the streams and says
+/// so in its telemetry, and the recording stops there, keeping what came before.
+#[test]
+fn a_slave_reset_stops_a_recording_where_it_happened() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut opts = virtual_board::Options::default();
+    opts.faults.slave_reset_at = Some(2.0);
+    let board = Board::start(opts);
+    let out = dir.path().join("rec.csv");
+    let mut link = board.link();
+    let o = record::record(
+        &mut link,
+        &record::RecordRequest {
+            out: &out,
+            duration_s: Some(4.0),
+            counts: false,
+            robot: None,
+            progress: None,
+        },
+    )
+    .unwrap();
+    assert_eq!(o.stopped_by, "slave reset", "{o:?}");
+    assert!(o.seconds < 2.5 && o.ticks > 100, "{o:?}");
+    let (_, score) = replay_exact(&out);
+    assert!(score.final_error_m < 5e-3, "{}", score.final_error_m);
+}
+
 #[test]
 fn a_recording_replays_against_its_truth() {
     let dir = tempfile::tempdir().unwrap();

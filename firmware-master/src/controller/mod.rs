@@ -162,10 +162,7 @@ impl Controller {
                 self.relay.on_host_ack(a, now.as_micros());
                 None
             }
-            HostToMaster::SetPose(p) => {
-                self.status &= !status::SLAVE_RESET;
-                self.queue_for_slave(SlaveCommand::SetPose(p))
-            }
+            HostToMaster::SetPose(p) => self.queue_for_slave(SlaveCommand::SetPose(p)),
             HostToMaster::SetOdometry(a) => self.queue_for_slave(SlaveCommand::SetAlgorithm(a)),
             HostToMaster::FollowTarget(t) => match self.validate(now, &t) {
                 Some(goal) => {
@@ -258,6 +255,10 @@ impl Controller {
     /// Queue a command for the slave; refused (and the motors stopped) if the queue is full,
     /// which only a host flooding commands faster than the slave applies them can cause.
     fn queue_for_slave(&mut self, c: SlaveCommand) -> Option<MasterToHost> {
+        if matches!(c, SlaveCommand::SetPose(_)) {
+            // The host knows where the robot is again; the pose is used once applied.
+            self.status &= !status::SLAVE_RESET;
+        }
         let was_empty = self.commands.is_empty();
         if self.commands.push_back(c).is_err() {
             return Some(self.reject(RejectReason::Busy));
@@ -608,8 +609,10 @@ impl Controller {
 
     /// Whether play/record streams are moving (poll the slave faster).
     /// True while a stream moved in the last 100 ms (momentary pauses in a recording included).
+    /// Not after a slave reset, which ends the streams: the line is the telemetry's again, and
+    /// tells the host.
     pub fn streaming(&self) -> bool {
-        self.relay.busy() || self.stream_recent
+        (self.relay.busy() || self.stream_recent) && self.status & status::SLAVE_RESET == 0
     }
 
     /// What the hello reply says.

@@ -233,6 +233,14 @@ pub fn run_record(a: RecordArgs) -> Result<()> {
             );
         }
     }
+    if outcome.stopped_by == "slave reset" {
+        bail!(
+            "the slave reset after {:.1} s of recording: it started again from power-on, so the \
+             recording stops there ({} keeps what came before)",
+            outcome.seconds,
+            outcome.out
+        );
+    }
     Ok(())
 }
 
@@ -309,6 +317,10 @@ pub struct VirtualBoardArgs {
         allow_negative_numbers = true
     )]
     pub fault_spi_torn: f64,
+    /// Fault injection: reset the slave this many seconds after the board started; it runs
+    /// again from power-on 5 ms later (a `play` or `record` then stops and says so).
+    #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
+    pub fault_slave_reset_at: Option<f64>,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -352,6 +364,15 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     opts.faults.spi.corrupt = a.fault_spi_corrupt;
     opts.faults.spi.drop = a.fault_spi_drop;
     opts.faults.spi.torn = a.fault_spi_torn;
+    if let Some(t) = a.fault_slave_reset_at {
+        if !(0.0..=host_bench::sim::emulator::MAX_DURATION_S).contains(&t) {
+            bail!(
+                "--fault-slave-reset-at is seconds after the board started, 0 to {}: got {t}",
+                host_bench::sim::emulator::MAX_DURATION_S
+            );
+        }
+        opts.faults.slave_reset_at = Some(t);
+    }
     if let Some(s) = &a.fault_schema {
         let fp = u32::from_str_radix(s.trim_start_matches("0x"), 16)
             .with_context(|| format!("--fault-schema {s:?} is not a hex number"))?;

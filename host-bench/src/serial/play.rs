@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use firmware_slave::played::{PlayKind, PlayedSensors, ReportSink};
 use protocol::link::{GbnReceiver, GbnSender, DEFAULT_TIMEOUT_US};
-use protocol::serial::{HostToMaster, MasterToHost};
+use protocol::serial::{status as serial_status, HostToMaster, MasterToHost};
 use protocol::spi::{Report, Reports, SensorSource};
 use robot_math::exact::FixedPose;
 use robot_math::odometry::{Layout, Method};
@@ -172,6 +172,12 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
                 report_bytes.extend_from_slice(&buf[..n]);
             }
             MasterToHost::Rejected(r) => bail!("the master rejected a command: {r:?}"),
+            MasterToHost::Telemetry(t) if t.status & serial_status::SLAVE_RESET != 0 => bail!(
+                "the slave reset after {} of {} updates: it started again from power-on, so \
+                 this play is void (play it again)",
+                got.len(),
+                expected.len()
+            ),
             _ => {}
         }
         if let Some(a) = rx.poll_ack() {

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use protocol::events::{Event, EventDecoder};
 use protocol::link::GbnReceiver;
-use protocol::serial::{HostToMaster, MasterToHost};
+use protocol::serial::{status as serial_status, HostToMaster, MasterToHost};
 use protocol::spi::{Report, Reports, SensorSource};
 use serde::Serialize;
 
@@ -179,6 +179,12 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
                 let mut buf = [0u8; 8192];
                 let n = rx.read(&mut buf);
                 bytes.extend_from_slice(&buf[..n]);
+            }
+            // The slave started again from power-on: its clock, pose and settings are new,
+            // so what comes after does not continue this recording.
+            MasterToHost::Telemetry(t) if t.status & serial_status::SLAVE_RESET != 0 => {
+                stopped_by = "slave reset";
+                break;
             }
             MasterToHost::SimTruth { t_us, pose } => {
                 let (x_m, y_m, theta_rad) = pose.to_si();

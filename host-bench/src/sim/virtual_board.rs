@@ -53,6 +53,9 @@ pub struct Faults {
     pub serial: SerialFaults,
     /// Bit errors and lost transactions on the SPI wire between the boards.
     pub spi: SpiFaults,
+    /// Reset the slave this many seconds after the board started (it runs again from
+    /// power-on 5 ms later).
+    pub slave_reset_at: Option<f64>,
 }
 
 #[derive(Clone, Debug)]
@@ -258,17 +261,16 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     let to_host: SharedLine = Rc::default();
     let byte_time = byte_time(opts.master.baud);
     let mut sim = Simulation::new()?;
-    sim.spawn(async {
-        firmware_slave::run(
-            EmuCounters(plant.clone()),
-            EmuEdges::new(plant.clone()),
-            EmuAbsEncoder(plant.clone()),
-            EmuSlaveSpi(wire.clone()),
-            &slave_shared,
-            &opts.slave,
-        )
-        .await;
-    });
+    sim.spawn(super::emulator::slave_board(
+        &plant,
+        &wire,
+        &slave_shared,
+        &opts.slave,
+        opts.faults
+            .slave_reset_at
+            .map(|s| Instant::from_micros((s * 1e6) as u64)),
+        None,
+    ));
     sim.spawn(async {
         firmware_master::run(
             EmuMasterBus {

@@ -322,31 +322,14 @@ pub fn run_logged(
     let slave_off = opts.faults.slave_off_at.map(secs_to_instant);
     let slave_reset = opts.faults.slave_reset_at.map(secs_to_instant);
     let mut sim = Simulation::new()?;
-    sim.spawn(async {
-        let slave = || {
-            firmware_slave::run(
-                EmuCounters(plant.clone()),
-                EmuEdges::new(plant.clone()),
-                EmuAbsEncoder(plant.clone()),
-                EmuSlaveSpi(wire.clone()),
-                &slave_shared,
-                &opts.slave,
-            )
-        };
-        // A reset before any power loss: the CPU stops, RAM and the shift register are gone,
-        // and after its boot time the firmware starts again from power-on.
-        if let Some(reset) = slave_reset.filter(|r| slave_off.is_none_or(|off| *r < off)) {
-            until(Some(reset), slave()).await;
-            wire.borrow_mut().power_off();
-            slave_shared.restart();
-            embassy_time::Timer::at(reset + Duration::from_micros((SLAVE_BOOT_S * 1e6) as u64))
-                .await;
-            wire.borrow_mut().power_on();
-        }
-        // Power loss: the firmware future is dropped mid-flight, like a CPU that stops.
-        until(slave_off, slave()).await;
-        wire.borrow_mut().power_off();
-    });
+    sim.spawn(slave_board(
+        &plant,
+        &wire,
+        &slave_shared,
+        &opts.slave,
+        slave_reset,
+        slave_off,
+    ));
     sim.spawn(async {
         firmware_master::run(
             EmuMasterBus {
@@ -648,6 +631,40 @@ pub fn physics_grid(opts: &Options, tracking: bool) -> Duration {
     let slave = opts.slave.update_period_us.max(1) as u64;
     let control = opts.master.control_period_us.max(1) as u64;
     Duration::from_micros(gcd(gcd(longest, slave), control))
+}
+
+/// The slave board: its firmware on the emulated parts, reset at `reset` (running again
+/// [`SLAVE_BOOT_S`] later) and losing power at `off`, if they come.
+pub(crate) async fn slave_board(
+    plant: &SharedPlant,
+    wire: &Rc<RefCell<SpiWire>>,
+    shared: &SlaveShared,
+    config: &SlaveConfig,
+    reset: Option<Instant>,
+    off: Option<Instant>,
+) {
+    let slave = || {
+        firmware_slave::run(
+            EmuCounters(plant.clone()),
+            EmuEdges::new(plant.clone()),
+            EmuAbsEncoder(plant.clone()),
+            EmuSlaveSpi(wire.clone()),
+            shared,
+            config,
+        )
+    };
+    // A reset before any power loss: the CPU stops, RAM and the shift register are gone, and
+    // after its boot time the firmware starts again from power-on.
+    if let Some(reset) = reset.filter(|r| off.is_none_or(|off| *r < off)) {
+        until(Some(reset), slave()).await;
+        wire.borrow_mut().power_off();
+        shared.restart();
+        embassy_time::Timer::at(reset + Duration::from_micros((SLAVE_BOOT_S * 1e6) as u64)).await;
+        wire.borrow_mut().power_on();
+    }
+    // Power loss: the firmware future is dropped mid-flight, like a CPU that stops.
+    until(off, slave()).await;
+    wire.borrow_mut().power_off();
 }
 
 async fn until(at: Option<Instant>, f: impl std::future::Future) {
