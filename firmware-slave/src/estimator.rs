@@ -137,13 +137,12 @@ impl SlaveEstimator {
         command: Option<SlaveCommand>,
     ) -> Update {
         let mut status = core::mem::take(&mut self.pending);
-        let hardware = slots(counters);
         match self.odometry.sensors() {
-            SensorKind::Counts => self.odometry.set_counts(hardware),
+            SensorKind::Counts => self.odometry.set_counts(counters),
             SensorKind::Ticks => {
                 let n = self.odometry.layout().encoders().min(counters.len());
                 let decoded = self.odometry.counts();
-                if counters_match_edges && decoded[..n] != hardware[..n] {
+                if counters_match_edges && decoded[..n] != counters[..n] {
                     status |= slave_status::EDGES_LOST;
                 }
             }

@@ -192,7 +192,7 @@ impl PlayedSensors {
                 for (c, d) in self.counts.iter_mut().zip(s.counts_delta) {
                     *c += d as i64;
                 }
-                self.odometry.set_counts(self.counts);
+                self.odometry.set_counts(&self.counts);
                 if let Some(code) = s.abs {
                     self.odometry.set_abs(code);
                 }

@@ -57,6 +57,10 @@ pub struct ExactParams {
     disp_per_count: i64,
     /// Σ_j |kth_j|, bounds the turn of a step (2^-48 turns per count).
     turn_per_count: u64,
+    /// The most whole counts (plus one) an update may move and still be one chunk: what
+    /// `disp_per_count` and `turn_per_count` allow, divided out once here so an update
+    /// compares instead of multiplying and dividing.
+    one_chunk_whole_counts: i64,
 }
 
 /// Why a layout cannot be integrated in fixed point.
@@ -134,6 +138,15 @@ impl ExactParams {
             turn_per_count += kth[j].unsigned_abs();
             j += 1;
         }
+        // whole · disp < MAX ⟺ whole ≤ (MAX − 1) / disp, and the same for the turn.
+        let by_disp = match (MAX_CHUNK_DISPLACEMENT_Q44 - 1).checked_div(disp_per_count) {
+            Some(k) => k,
+            None => i64::MAX,
+        };
+        let by_turn = match (MAX_CHUNK_TURN_48 - 1).checked_div(turn_per_count) {
+            Some(k) => k as i64,
+            None => i64::MAX,
+        };
         Ok(ExactParams {
             n,
             kx,
@@ -141,6 +154,7 @@ impl ExactParams {
             kth,
             disp_per_count,
             turn_per_count,
+            one_chunk_whole_counts: if by_disp < by_turn { by_disp } else { by_turn },
         })
     }
 
@@ -274,17 +288,22 @@ impl ExactOdometry {
     pub fn update_q16(&mut self, counts_q16: &[i64; MAX_ENCODERS]) -> FixedPose {
         let mut dq = [0i64; MAX_ENCODERS];
         let mut biggest = 0i64;
-        for j in 0..MAX_ENCODERS {
-            // Unused slots have zero constants: whatever they hold moves nothing.
+        for j in 0..self.p.n.min(MAX_ENCODERS) {
+            // The layout's encoders only: unused slots have zero constants and move nothing.
+            // (One loop that also keeps the counts: a separate copy is a `memcpy` call.)
             dq[j] = counts_q16[j].wrapping_sub(self.last[j]);
+            self.last[j] = counts_q16[j];
             biggest = biggest.max(dq[j].saturating_abs());
         }
-        self.last = *counts_q16;
         // How many chunks keep displacement and turn per chunk in range. Almost always 1.
         let whole_counts = (biggest >> 16) + 1;
-        let disp = whole_counts.saturating_mul(self.p.disp_per_count);
-        let turn = (whole_counts as u64).saturating_mul(self.p.turn_per_count);
-        let chunks = (disp / MAX_CHUNK_DISPLACEMENT_Q44).max((turn / MAX_CHUNK_TURN_48) as i64) + 1;
+        let chunks = if whole_counts <= self.p.one_chunk_whole_counts {
+            1 // compared, not multiplied and divided (64-bit division is a library call)
+        } else {
+            let disp = whole_counts.saturating_mul(self.p.disp_per_count);
+            let turn = (whole_counts as u64).saturating_mul(self.p.turn_per_count);
+            (disp / MAX_CHUNK_DISPLACEMENT_Q44).max((turn / MAX_CHUNK_TURN_48) as i64) + 1
+        };
         if chunks == 1 {
             self.step(&dq);
         } else {
@@ -306,18 +325,25 @@ impl ExactOdometry {
     fn step(&mut self, dq: &[i64; MAX_ENCODERS]) {
         let p = &self.p;
         let (mut dx, mut dy, mut dth) = (0i64, 0i64, 0u64);
-        for (((&d, &kx), &ky), &kth) in dq.iter().zip(&p.kx).zip(&p.ky).zip(&p.kth) {
+        // The layout's encoders only (the unused slots' constants are zero).
+        let n = p.n.min(MAX_ENCODERS);
+        for (((&d, &kx), &ky), &kth) in dq[..n].iter().zip(&p.kx).zip(&p.ky).zip(&p.kth) {
             // Whole counts and the Q16 fraction apart, so neither product can overflow:
             // constant (Q44) × whole counts (bounded by the chunking) is Q44 directly.
             let (whole, frac) = (d >> 16, d & 0xFFFF);
-            dx += kx * whole + shr_round(kx * frac, 16);
-            dy += ky * whole + shr_round(ky * frac, 16);
+            dx += kx * whole;
+            dy += ky * whole;
+            if frac != 0 {
+                // Interpolated positions only (sampled counters are whole).
+                dx += shr_round(kx * frac, 16);
+                dy += shr_round(ky * frac, 16);
+            }
             // Heading lives modulo a turn: wrapping arithmetic is exact arithmetic here.
             dth = dth.wrapping_add(kth.wrapping_mul(d) as u64);
         }
         // Body displacement, Q44 -> Q40.
         let (dx, dy) = (shr_round(dx, 4), shr_round(dy, 4));
-        let half = (dth as i64) / 2;
+        let half = half_toward_zero(dth as i64);
         let mid = self.pose.theta.wrapping_add(half as u64);
         let (s, c) = sin_cos((mid >> 32) as u32);
         let wx = mul_q30_wide(dx, c) - mul_q30_wide(dy, s);
@@ -328,11 +354,20 @@ impl ExactOdometry {
         let h2 = (h_q31 * h_q31 + (1 << 30)) >> 31;
         let h4 = (h2 * h2 + (1 << 30)) >> 31;
         // 1 - sinc(h), Q30; applied as a correction so the big product never forms.
-        let eps_q30 = (h2 / 6 - h4 / 120 + 1) / 2;
+        // h²/6 and h⁴/120 as multiply-and-shift (|h2| < 2^31): no 64-bit divisions.
+        let eps_q30 =
+            half_toward_zero((((h2 * 357_913_941) >> 31) - ((h4 * 17_895_697) >> 31)) + 1);
         self.pose.x += wx - mul_q30_wide(wx, eps_q30);
         self.pose.y += wy - mul_q30_wide(wy, eps_q30);
         self.pose.theta = self.pose.theta.wrapping_add(dth);
     }
+}
+
+/// `x / 2` (rounding toward zero) by shifts: at opt-level "z" a 64-bit division, even by
+/// two, is a library call on the M3.
+#[inline]
+fn half_toward_zero(x: i64) -> i64 {
+    (x + ((x as u64) >> 63) as i64) >> 1
 }
 
 /// The f64 twin of [`ExactOdometry`]: same model, floating point, heading from the

@@ -1,8 +1,9 @@
 //! Integer trigonometry on binary angles, for the slave's FPU-less Cortex-M3.
 //!
 //! Angles are `u32` binary angles (2^32 = one turn); results are Q30 (`1 << 30` = 1.0).
-//! `sin_cos` reduces to one octant and evaluates Taylor polynomials in Q31 with 64-bit
-//! products: no floats, no tables, about 1e-9 absolute error.
+//! `sin_cos` reduces to one octant and evaluates Taylor polynomials in Q31, each product one
+//! 32 × 32 → 64-bit multiply (a single `smull` on the M3): no floats, no tables, no
+//! divisions, about 2e-9 absolute error.
 
 /// Q30 one.
 pub const ONE_Q30: i64 = 1 << 30;
@@ -10,29 +11,31 @@ pub const ONE_Q30: i64 = 1 << 30;
 /// π in Q29 (for the octant reduction: an octant spans 2^29 binary-angle units).
 const PI_Q29: i64 = 1_686_629_713; // round(π · 2^29)
 
-/// Multiply two Q31 numbers, rounding to nearest.
+/// Multiply two Q31 numbers of magnitude below 2^31, rounding to nearest: one 32 × 32-bit
+/// multiply (a 64 × 64 one is three on the M3, and the divisions the old Horner form took
+/// were library calls).
 #[inline]
-fn mul_q31(a: i64, b: i64) -> i64 {
-    (a * b + (1 << 30)) >> 31
+fn mul_q31(a: i32, b: i32) -> i32 {
+    ((a as i64 * b as i64 + (1 << 30)) >> 31) as i32
 }
 
-/// sin and cos of x in [0, π/4], x in Q31, results in Q31 (Taylor to x^9 / x^10: the first
-/// omitted terms are below 2e-9 on this interval).
-fn sin_cos_octant(x: i64) -> (i64, i64) {
+/// The Taylor coefficients in Q31: sin x = x(1 + S1 x² + S2 x⁴ + S3 x⁶ + S4 x⁸),
+/// cos x = 1 + C1 x² + … + C5 x¹⁰ (the first omitted terms are below 2e-9 up to π/4).
+const S: [i32; 4] = [-357_913_941, 17_895_697, -426_088, 5_918];
+const C: [i32; 5] = [-1_073_741_824, 89_478_485, -2_982_616, 53_261, -592];
+
+/// sin and cos of x in [0, π/4], x in Q31, results in Q31.
+fn sin_cos_octant(x: i32) -> (i64, i64) {
     let x2 = mul_q31(x, x);
-    // Horner: sin = x(1 - x²/6(1 - x²/20(1 - x²/42(1 - x²/72))))
-    const Q31: i64 = 1 << 31;
-    let s = Q31 - x2 / 72;
-    let s = Q31 - mul_q31(x2, s) / 42;
-    let s = Q31 - mul_q31(x2, s) / 20;
-    let s = Q31 - mul_q31(x2, s) / 6;
-    let sin = mul_q31(x, s);
-    // cos = 1 - x²/2(1 - x²/12(1 - x²/30(1 - x²/56(1 - x²/90))))
-    let c = Q31 - x2 / 90;
-    let c = Q31 - mul_q31(x2, c) / 56;
-    let c = Q31 - mul_q31(x2, c) / 30;
-    let c = Q31 - mul_q31(x2, c) / 12;
-    let cos = Q31 - mul_q31(x2, c) / 2;
+    let s = S[2] + mul_q31(x2, S[3]);
+    let s = S[1] + mul_q31(x2, s);
+    let s = S[0] + mul_q31(x2, s);
+    let sin = x as i64 + mul_q31(x, mul_q31(x2, s)) as i64;
+    let c = C[3] + mul_q31(x2, C[4]);
+    let c = C[2] + mul_q31(x2, c);
+    let c = C[1] + mul_q31(x2, c);
+    let c = C[0] + mul_q31(x2, c);
+    let cos = (1i64 << 31) + mul_q31(x2, c) as i64;
     (sin, cos)
 }
 
@@ -46,8 +49,8 @@ pub fn sin_cos(angle: u32) -> (i64, i64) {
     } else {
         (1 << 29) - within
     };
-    // Radians in Q31: t / 2^29 · π/4 · 2^31 = t · π.
-    let x = (t * PI_Q29 + (1 << 28)) >> 29;
+    // Radians in Q31: t / 2^29 · π/4 · 2^31 = t · π (at most π/4 · 2^31 < 2^31).
+    let x = ((t * PI_Q29 + (1 << 28)) >> 29) as i32;
     let (s, c) = sin_cos_octant(x);
     let (s, c) = ((s + 1) >> 1, (c + 1) >> 1); // Q31 -> Q30
     match octant {
@@ -79,6 +82,16 @@ pub fn mul_q30(a: i64, f: i64) -> i64 {
 /// rounded separately (at most one unit of error in the result).
 #[inline]
 pub fn mul_q30_wide(a: i64, f: i64) -> i64 {
+    if a == a as i32 as i64 && f == f as i32 as i64 {
+        // Both fit 32 bits (a step's displacement, nearly always): one exact multiply.
+        return shr_round(a * f, 30);
+    }
+    mul_q30_split(a, f)
+}
+
+/// [`mul_q30_wide`] for a factor or value past 32 bits.
+#[inline(never)]
+fn mul_q30_split(a: i64, f: i64) -> i64 {
     let hi = a >> 16;
     let lo = a & 0xFFFF;
     shr_round(hi * f, 14) + shr_round(lo * f, 30)

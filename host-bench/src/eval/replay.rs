@@ -143,7 +143,7 @@ impl Estimator for Odometry {
         wheels: &[TickTracker; MAX_ENCODERS],
         _interpolate: bool,
     ) -> Pose2 {
-        self.set_counts(wheels.map(|w| w.count()));
+        self.set_counts(&wheels.map(|w| w.count()));
         Odometry::update(self, t_ns).to_pose2()
     }
 }

@@ -437,7 +437,7 @@ mod tests {
             }
             plant.advance(1e-3, 1e-4);
             let c = plant.encoder_counts();
-            odo.set_counts([c[0], c[1], 0, 0]);
+            odo.set_counts(&[c[0], c[1]]);
             odo.update(ms * 1_000_000);
         }
         // Round the square at least once, turning at each corner.

@@ -158,7 +158,8 @@ impl Odometry {
         let counts_f64 = self.counts.map(|c| c as f64);
         Ok(match method {
             Method::Exact => {
-                let q = self.positions_q16(t_ns);
+                let mut q = [0i64; MAX_ENCODERS];
+                self.positions_q16(t_ns, &mut q);
                 let exact = *layout.exact();
                 State::Exact(match (layout.carriage(), layout.abs()) {
                     (Some(c), Some(a)) => ExactState::Carriage(
@@ -244,9 +245,8 @@ impl Odometry {
 
     /// What `exact` sees of each wheel, Q16 counts: interpolated between ticks at `t_ns` with
     /// time stamps, the whole counts otherwise; zero past the encoders. Integer-only.
-    fn positions_q16(&self, t_ns: u64) -> [i64; MAX_ENCODERS] {
+    fn positions_q16(&self, t_ns: u64, q: &mut [i64; MAX_ENCODERS]) {
         let n = self.layout.encoders();
-        let mut q = [0i64; MAX_ENCODERS];
         for (j, (slot, (tracker, count))) in q
             .iter_mut()
             .zip(self.trackers.iter().zip(self.counts))
@@ -259,7 +259,6 @@ impl Odometry {
                 };
             }
         }
-        q
     }
 
     /// One decoded tick of `encoder` at `t_ns`, `step` = ±1 ([`SensorKind::Ticks`]; anything
@@ -307,12 +306,13 @@ impl Odometry {
     /// The encoders' cumulative whole counts ([`SensorKind::Counts`]; ignored with ticks).
     /// Entries past the layout's encoders are ignored. Integer-only.
     #[inline(never)]
-    pub fn set_counts(&mut self, counts: [i64; MAX_ENCODERS]) {
+    /// The counters' cumulative counts, the layout's encoders first (more are ignored).
+    pub fn set_counts(&mut self, counts: &[i64]) {
         if self.sensors != SensorKind::Counts {
             return;
         }
         let n = self.layout.encoders();
-        for (j, (c, new)) in self.counts.iter_mut().zip(counts).enumerate() {
+        for (j, (c, &new)) in self.counts.iter_mut().zip(counts).enumerate() {
             if j < n {
                 *c = new;
             }
@@ -339,7 +339,8 @@ impl Odometry {
     /// `exact`'s update. Integer-only (an entry point of `scripts/check-no-float.py`).
     #[inline(never)]
     fn update_exact(&mut self, t_ns: u64) -> FixedPose {
-        let q = self.positions_q16(t_ns);
+        let mut q = [0i64; MAX_ENCODERS];
+        self.positions_q16(t_ns, &mut q);
         if let State::Exact(e) = &mut self.state {
             self.pose = match e {
                 ExactState::Body(o) => o.update_q16(&q),
@@ -390,7 +391,8 @@ impl Odometry {
     /// Integer-only (an entry point of `scripts/check-no-float.py`).
     #[inline(never)]
     fn set_pose_exact(&mut self, pose: FixedPose, t_ns: u64) {
-        let q = self.positions_q16(t_ns);
+        let mut q = [0i64; MAX_ENCODERS];
+        self.positions_q16(t_ns, &mut q);
         if let State::Exact(e) = &mut self.state {
             match e {
                 ExactState::Body(o) => {
