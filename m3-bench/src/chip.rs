@@ -47,6 +47,11 @@ labels! {
     Omni3Edge => m3b_case_omni3_edge = 6,
     Omni3TicksUpdate => m3b_case_omni3_ticks_update = 7,
     Omni3CountsUpdate => m3b_case_omni3_counts_update = 8,
+    SpiSlaveBuild => m3b_case_spi_slave_build = 9,
+    SpiSlaveParse => m3b_case_spi_slave_parse = 10,
+    SpiMasterBuild => m3b_case_spi_master_build = 11,
+    SpiMasterParse => m3b_case_spi_master_parse = 12,
+    MasterControlStep => m3b_case_master_control_step = 13,
 }
 marker!(m3b_begin = 100);
 marker!(m3b_end = 0);

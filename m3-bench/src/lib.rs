@@ -1,13 +1,20 @@
 //! The measured calls of the Cortex-M3 instruction-count benchmark (`scripts/m3-bench`; the
 //! image that runs them under QEMU is `src/main.rs` and `src/chip.rs`).
 //!
-//! The calls are the slave's own code paths ([`SlaveEstimator`], as the odometry task
-//! calls it), on the board's default layout (seed 004's swivel carriage) and on a body-fixed
-//! 3-omni triangle. Portable: on the chip each call runs between two markers (`chip.rs`), on the
+//! The calls are the boards' own code paths: the slave's odometry ([`SlaveEstimator`], as the
+//! odometry task calls it) on the board's default layout (seed 004's swivel carriage) and on a
+//! body-fixed 3-omni triangle; the SPI frames each side builds and checks; the master's
+//! control step. Portable: on the chip each call runs between two markers (`chip.rs`), on the
 //! host a test runs every case once.
 #![no_std]
 
+use embassy_time::Instant;
+use firmware_master::controller::Controller;
+use firmware_master::MasterConfig;
 use firmware_slave::ports::EncoderEdge;
+use protocol::serial::{HostToMaster, MovingTarget};
+use protocol::spi::{self, MasterFrame, SlaveFrame, SPI_FRAME_LEN};
+use protocol::{BinaryAngle, Point, Pose};
 use firmware_slave::{SensorMode, SlaveConfig, SlaveEstimator};
 use robot_math::odometry::Layout;
 use robot_math::sensors::QuadratureDecoder;
@@ -31,10 +38,20 @@ pub enum Case {
     Omni3Edge,
     Omni3TicksUpdate,
     Omni3CountsUpdate,
+    /// The slave builds its frame for the master (postcard, padding, CRC-32), and checks and
+    /// decodes the master's; the master the same the other way. Frames as in a run: a pose,
+    /// no command, empty streams.
+    SpiSlaveBuild,
+    SpiSlaveParse,
+    SpiMasterBuild,
+    SpiMasterParse,
+    /// The master's control step following a target (pursuit, kinematics, speed loops,
+    /// duties), a fresh slave frame taken just before.
+    MasterControlStep,
 }
 
 impl Case {
-    pub const ALL: [Case; 8] = [
+    pub const ALL: [Case; 13] = [
         Case::Empty,
         Case::ExactEdge,
         Case::ExactEdgePlacing,
@@ -43,6 +60,11 @@ impl Case {
         Case::Omni3Edge,
         Case::Omni3TicksUpdate,
         Case::Omni3CountsUpdate,
+        Case::SpiSlaveBuild,
+        Case::SpiSlaveParse,
+        Case::SpiMasterBuild,
+        Case::SpiMasterParse,
+        Case::MasterControlStep,
     ];
 }
 
@@ -80,6 +102,85 @@ pub fn run(meter: &mut dyn Meter) {
         Case::Omni3TicksUpdate,
     );
     counts_updates(meter, &omni, 0, Case::Omni3CountsUpdate);
+    spi_frames(meter);
+    control_steps(meter);
+}
+
+/// A slave frame as one arms it in a run, its pose moved by `k`.
+fn slave_frame(k: u32) -> SlaveFrame {
+    SlaveFrame {
+        seq: k as u16,
+        time_us: 1_000 * k,
+        armed_us: 1_000 * k + 400,
+        pose: Pose {
+            x_um: 1_234_567 + 300 * k as i32,
+            y_um: -765_432 + 200 * k as i32,
+            heading: BinaryAngle(0x2345_6789u32.wrapping_add(k << 20)),
+        },
+        status: protocol::spi::slave_status::RUNNING,
+        robot: 0xec1b_0d6a,
+        period_us: 1_000,
+        ..SlaveFrame::default()
+    }
+}
+
+/// Each side's frame built and checked, [`CALLS`] times each.
+fn spi_frames(meter: &mut dyn Meter) {
+    for k in 0..CALLS as u32 {
+        let slave = slave_frame(k);
+        let master = MasterFrame {
+            seq: k as u16,
+            command_seq: 3,
+            ..MasterFrame::default()
+        };
+        let mut wire = [0u8; SPI_FRAME_LEN];
+        meter.measure(Case::SpiSlaveBuild, &mut || {
+            wire = core::hint::black_box(spi::encode(core::hint::black_box(&slave)));
+        });
+        meter.measure(Case::SpiMasterParse, &mut || {
+            core::hint::black_box(spi::decode::<SlaveFrame>(core::hint::black_box(&wire)))
+                .ok();
+        });
+        meter.measure(Case::SpiMasterBuild, &mut || {
+            wire = core::hint::black_box(spi::encode(core::hint::black_box(&master)));
+        });
+        meter.measure(Case::SpiSlaveParse, &mut || {
+            core::hint::black_box(spi::decode::<MasterFrame>(core::hint::black_box(&wire)))
+                .ok();
+        });
+    }
+}
+
+/// The master following a target 1 m ahead at 0.5 m/s, a fresh slave frame every 2 ms and a
+/// control step every 10 ms, as it runs.
+fn control_steps(meter: &mut dyn Meter) {
+    let Some(mut c) = Controller::new(MasterConfig::DEFAULT) else {
+        return;
+    };
+    let to = Point {
+        x_um: 1_000_000,
+        y_um: 300_000,
+    };
+    c.on_host_message(
+        Instant::from_millis(0),
+        HostToMaster::FollowTarget(MovingTarget {
+            from: to,
+            to,
+            target_speed_um_s: 0,
+            robot_speed_um_s: 500_000,
+            heading: BinaryAngle(0),
+        }),
+    );
+    for k in 1..=CALLS as u32 * 5 {
+        let now = Instant::from_millis(2 * k as u64);
+        c.on_slave_frame(now, Ok(slave_frame(k)));
+        if k % 5 == 0 {
+            c.on_host_message(now, HostToMaster::Heartbeat);
+            meter.measure(Case::MasterControlStep, &mut || {
+                core::hint::black_box(c.control(now));
+            });
+        }
+    }
 }
 
 /// Seed 000's triangle: three omni wheels at 120° on a 0.13 m circle, 0.1 mm counts.
