@@ -98,12 +98,13 @@ pub async fn run(
     edges: impl EncoderEdges,
     abs: impl AbsoluteEncoderPins,
     spi: impl SpiSlave,
+    cycles: impl ports::CycleCounter,
     shared: &SlaveShared,
     config: &SlaveConfig,
 ) -> ! {
     let clock = FrameClock::start();
     join(
-        odometry_task(counters, edges, abs, shared, config, clock),
+        odometry_task(counters, edges, abs, shared, config, clock, cycles),
         spi_task(spi, shared, clock),
     )
     .await

@@ -29,7 +29,11 @@ mod firmware {
         spi: board::SpiSlaveLink,
         shared: &'static SlaveShared,
     ) -> ! {
-        firmware_slave::run(counters, edges, abs, spi, shared, &CONFIG).await
+        #[cfg(feature = "cycles")]
+        let cycles = board::cycles::DwtCycles::start();
+        #[cfg(not(feature = "cycles"))]
+        let cycles = firmware_slave::ports::NoCycles;
+        firmware_slave::run(counters, edges, abs, spi, cycles, shared, &CONFIG).await
     }
 
     #[embassy_executor::main]

@@ -94,6 +94,7 @@ pub async fn odometry_task(
     shared: &SlaveShared,
     config: &SlaveConfig,
     clock: crate::FrameClock,
+    mut cycles: impl crate::ports::CycleCounter,
 ) -> ! {
     let period = Duration::from_micros(config.update_period_us as u64);
     let (raw, edge_levels) = if config.sensor == SensorMode::TickTimestamps {
@@ -131,8 +132,10 @@ pub async fn odometry_task(
     let mut ticker = Ticker::every(period);
     let mut next_due = Instant::now() + period;
     let mut seq: u16 = 0;
+    let mut measured = crate::ports::UpdateCycles::default();
     loop {
         ticker.next().await;
+        let started = cycles.cycles();
         // Sample first, as close to the tick as possible; everything else can wait.
         let levels = abs.read_levels();
         let now = Instant::now();
@@ -309,6 +312,13 @@ pub async fn odometry_task(
             ..SlaveFrame::default()
         };
         shared.publish(&frame, pose);
+        if let (Some(a), Some(b)) = (started, cycles.cycles()) {
+            measured.add(b.wrapping_sub(a));
+            if measured.updates as u64 * config.update_period_us as u64 >= 1_000_000 {
+                cycles.report(&measured);
+                measured = Default::default();
+            }
+        }
     }
 }
 

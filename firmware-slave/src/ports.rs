@@ -98,3 +98,64 @@ impl EncoderEdges for NoEdges {
         }
     }
 }
+
+/// The CPU's cycle counter, read at the start and end of every odometry update for the
+/// on-board cycle report (the board's `cycles` feature: DWT CYCCNT, a line over defmt every
+/// second). The emulator and the plain board build have none ([`NoCycles`]), which costs
+/// nothing.
+pub trait CycleCounter {
+    /// The free-running 32-bit cycle count now, or None without a counter.
+    fn cycles(&mut self) -> Option<u32>;
+    /// A second's updates, measured.
+    fn report(&mut self, _cycles: &UpdateCycles) {}
+}
+
+/// No cycle counter.
+pub struct NoCycles;
+
+impl CycleCounter for NoCycles {
+    fn cycles(&mut self) -> Option<u32> {
+        None
+    }
+}
+
+/// Cycles per odometry update, over the updates of about a second: from the tick's wake to
+/// the frame published (sensors read, pose integrated, reports staged).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UpdateCycles {
+    pub updates: u32,
+    pub min: u32,
+    pub max: u32,
+    pub total: u64,
+}
+
+impl UpdateCycles {
+    pub fn add(&mut self, cycles: u32) {
+        if self.updates == 0 || cycles < self.min {
+            self.min = cycles;
+        }
+        self.max = self.max.max(cycles);
+        self.total += cycles as u64;
+        self.updates += 1;
+    }
+
+    /// Mean cycles per update.
+    pub fn mean(&self) -> u32 {
+        (self.total / self.updates.max(1) as u64) as u32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::UpdateCycles;
+
+    #[test]
+    fn update_cycles_keep_the_fewest_the_most_and_the_mean() {
+        let mut c = UpdateCycles::default();
+        for k in [900, 700, 1_300, 1_100] {
+            c.add(k);
+        }
+        assert_eq!((c.updates, c.min, c.max, c.mean()), (4, 700, 1_300, 1_000));
+        assert_eq!(UpdateCycles::default().mean(), 0);
+    }
+}

@@ -123,6 +123,7 @@ fn run(stale_counters: bool) -> (u16, f64, i64) {
         &shared,
         &config,
         firmware_slave::FrameClock::start(),
+        firmware_slave::ports::NoCycles,
     );
     sim.spawn(async move {
         task.await;

@@ -12,10 +12,10 @@ use embassy_time::Instant;
 use firmware_master::controller::Controller;
 use firmware_master::MasterConfig;
 use firmware_slave::ports::EncoderEdge;
+use firmware_slave::{SensorMode, SlaveConfig, SlaveEstimator};
 use protocol::serial::{HostToMaster, MovingTarget};
 use protocol::spi::{self, MasterFrame, SlaveFrame, SPI_FRAME_LEN};
 use protocol::{BinaryAngle, Point, Pose};
-use firmware_slave::{SensorMode, SlaveConfig, SlaveEstimator};
 use robot_math::odometry::Layout;
 use robot_math::sensors::QuadratureDecoder;
 use robot_math::ticks::PLACING_TICKS;
@@ -138,15 +138,13 @@ fn spi_frames(meter: &mut dyn Meter) {
             wire = core::hint::black_box(spi::encode(core::hint::black_box(&slave)));
         });
         meter.measure(Case::SpiMasterParse, &mut || {
-            core::hint::black_box(spi::decode::<SlaveFrame>(core::hint::black_box(&wire)))
-                .ok();
+            core::hint::black_box(spi::decode::<SlaveFrame>(core::hint::black_box(&wire))).ok();
         });
         meter.measure(Case::SpiMasterBuild, &mut || {
             wire = core::hint::black_box(spi::encode(core::hint::black_box(&master)));
         });
         meter.measure(Case::SpiSlaveParse, &mut || {
-            core::hint::black_box(spi::decode::<MasterFrame>(core::hint::black_box(&wire)))
-                .ok();
+            core::hint::black_box(spi::decode::<MasterFrame>(core::hint::black_box(&wire))).ok();
         });
     }
 }

@@ -6,6 +6,8 @@
 //! PB8..PB15 absolute encoder, PC13 LED. TIM4 is embassy's time driver.
 
 mod abs_encoder;
+#[cfg(feature = "cycles")]
+pub mod cycles;
 mod exti;
 mod qei;
 mod spi_slave;

@@ -649,6 +649,7 @@ pub(crate) async fn slave_board(
             EmuEdges::new(plant.clone()),
             EmuAbsEncoder(plant.clone()),
             EmuSlaveSpi(wire.clone()),
+            firmware_slave::ports::NoCycles,
             shared,
             config,
         )
