@@ -43,6 +43,9 @@ enum Command {
         /// every edge with its `timestamps` (edge interrupts) [default: the board's, timestamps].
         #[arg(long, value_parser = ["counts", "timestamps"])]
         sensor: Option<String>,
+        /// The slave's odometry update rate, Hz [default: the board's, 1000].
+        #[arg(long, value_name = "HZ", value_parser = ["1000", "2000", "5000", "10000"])]
+        slave_rate: Option<String>,
         /// Print the summary as one JSON object instead of text.
         #[arg(long)]
         json: bool,
@@ -230,6 +233,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             seed,
             algorithm,
             sensor,
+            slave_rate,
             json,
             sweep,
             out,
@@ -263,6 +267,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
                 // The board's configuration.
                 _ => {}
+            }
+            if let Some(hz) = slave_rate.as_deref().and_then(|r| r.parse::<u32>().ok()) {
+                opts.slave.update_period_us = 1_000_000 / hz;
             }
             // The command line over the scenario's own settings.
             opts.encoder_phase = encoder_phase.or(opts.encoder_phase);

@@ -239,6 +239,22 @@ fn a_slave_reset_mid_run_stops_the_motors_and_the_host_is_told() {
     assert!(s.final_error_m > 0.5, "{s:?}");
 }
 
+/// The slave's update rate is a setting (issue 11): at 10 kHz it integrates ten times as often
+/// with the same accuracy, and the master, still polling every 2 ms, sees its pose as it is.
+#[test]
+fn the_slave_runs_at_10_khz_as_accurately() {
+    let s = run_default(1, |o| o.slave.update_period_us = 100).summary;
+    assert!((119_990..=120_001).contains(&s.slave_updates), "{s:?}");
+    assert!(
+        s.arrived && s.distance_to_goal_m < GOAL_TOLERANCE_M,
+        "{s:?}"
+    );
+    assert!(s.final_error_m < FINAL_ERROR_BOUND_M, "{s:?}");
+    assert!(s.max_error_m < FINAL_ERROR_BOUND_M, "{s:?}");
+    assert_eq!(s.master_view_matches_slave, Some(true));
+    assert_eq!(s.spi_frames_rejected, 0);
+}
+
 #[test]
 fn a_silent_host_stops_the_motors_within_the_host_timeout() {
     let run = run_default(1, |o| o.faults.host_silent_after = Some(3.0));
