@@ -140,9 +140,7 @@ impl SlaveEstimator {
         match self.odometry.sensors() {
             SensorKind::Counts => self.odometry.set_counts(counters),
             SensorKind::Ticks => {
-                let n = self.odometry.layout().encoders().min(counters.len());
-                let decoded = self.odometry.counts();
-                if counters_match_edges && decoded[..n] != counters[..n] {
+                if counters_match_edges && !self.odometry.counts_are(counters) {
                     status |= slave_status::EDGES_LOST;
                 }
             }
