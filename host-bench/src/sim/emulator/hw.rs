@@ -84,7 +84,9 @@ impl EncoderEdges for EmuEdges {
         };
         for &(t, encoder, count) in &self.batch {
             f(EncoderEdge {
-                t_us: (t * 1e6).round() as u64,
+                // Rounded to the microsecond: for 0 ≤ x < 2^52, `(x + 0.5) as u64` is exactly
+                // `x.round()`, without its library call (2.5 % of an emulation).
+                t_us: (t * 1e6 + 0.5) as u64,
                 encoder: encoder as u8,
                 levels: QuadratureDecoder::levels_at(count),
             });
