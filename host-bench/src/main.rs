@@ -89,6 +89,18 @@ enum Command {
         /// part way through: both boards keep a torn frame.
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_spi_torn: Option<f64>,
+        /// Fault injection: the probability per serial frame between host and master, each
+        /// way, [0, 1), that it has a bit flipped; the three below that it is lost, arrives
+        /// twice, or arrives after the next one. On a noisy line the host sends each setting
+        /// and the goal again until the master's telemetry shows it.
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_serial_corrupt: Option<f64>,
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_serial_drop: Option<f64>,
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_serial_duplicate: Option<f64>,
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_serial_delay: Option<f64>,
     },
     /// Every seed case, every sensor mode, all four odometry methods side by side, with the
     /// papers' reported figures.
@@ -244,6 +256,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             fault_spi_corrupt,
             fault_spi_drop,
             fault_spi_torn,
+            fault_serial_corrupt,
+            fault_serial_drop,
+            fault_serial_duplicate,
+            fault_serial_delay,
         } => {
             let scenario = match Scenario::builtin(&scenario) {
                 Some(s) => s,
@@ -280,6 +296,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             f.spi.corrupt = fault_spi_corrupt.unwrap_or(f.spi.corrupt);
             f.spi.drop = fault_spi_drop.unwrap_or(f.spi.drop);
             f.spi.torn = fault_spi_torn.unwrap_or(f.spi.torn);
+            f.serial.corrupt = fault_serial_corrupt.unwrap_or(f.serial.corrupt);
+            f.serial.drop = fault_serial_drop.unwrap_or(f.serial.drop);
+            f.serial.duplicate = fault_serial_duplicate.unwrap_or(f.serial.duplicate);
+            f.serial.delay = fault_serial_delay.unwrap_or(f.serial.delay);
             // The log's rows only stream to the files of --out: a run of any length keeps
             // its summary alone (and a thinned copy for the plot).
             opts.keep_log = false;

@@ -202,6 +202,49 @@ fn losing_the_slave_stops_the_motors_within_the_link_timeout() {
     );
 }
 
+/// Serial noise at issue 10's rates between host and master (1 % of frames bit-flipped, 5 %
+/// lost, 1 % duplicated, 1 % delayed, each way): the host sends each setting, the robot and
+/// the goal again until the master shows them, and the runs end as clean ones do, on the
+/// pursuit and on a tracked path whose robot is uploaded over the line.
+#[test]
+fn a_noisy_serial_line_to_the_host_still_gets_the_robot_there() {
+    let noisy = |o: &mut Options| {
+        o.faults.serial = host_bench::sim::serial_noise::SerialFaults {
+            corrupt: 0.01,
+            drop: 0.05,
+            duplicate: 0.01,
+            delay: 0.01,
+        }
+    };
+    let mut rejected = 0;
+    for seed in 1..=3 {
+        let s = run_default(seed, noisy).summary;
+        assert!(
+            s.arrived && s.distance_to_goal_m < GOAL_TOLERANCE_M,
+            "{s:?}"
+        );
+        assert!(s.final_error_m < FINAL_ERROR_BOUND_M, "{s:?}");
+        assert_eq!(s.master_view_matches_slave, Some(true));
+        let (m, h) = (s.serial_injected_to_master, s.serial_injected_to_host);
+        assert!(
+            m.dropped > 0 && h.dropped > 0 && h.corrupted + m.corrupted > 0,
+            "{s:?}"
+        );
+        rejected += s.serial_frames_rejected;
+    }
+    assert!(rejected > 0, "spoilt frames are caught and counted");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/seed002-square.toml"
+    );
+    let square = host_bench::formats::scenario::load(std::path::Path::new(path)).unwrap();
+    let mut opts = Options::new(&square);
+    noisy(&mut opts);
+    let s = emulator::run(&square, &opts).unwrap().summary;
+    assert!(s.robot_uploaded.is_some() && s.arrived, "{s:?}");
+    assert!(s.tracking_rms_m.unwrap() < 2e-3, "{s:?}");
+}
+
 /// A slave reset mid-run (issue 10): 5 ms later the slave runs again from power-on, its pose
 /// back at its power-on pose. The master must tell (by the slave's clock starting again),
 /// stop the motors at its next control step, say so to the host, and not drive on the reset

@@ -103,6 +103,10 @@ struct RawFaults {
     spi_corrupt: Option<Spanned<f64>>,
     spi_drop: Option<Spanned<f64>>,
     spi_torn: Option<Spanned<f64>>,
+    serial_corrupt: Option<Spanned<f64>>,
+    serial_drop: Option<Spanned<f64>>,
+    serial_duplicate: Option<Spanned<f64>>,
+    serial_delay: Option<Spanned<f64>>,
 }
 
 /// Every table is a single table.
@@ -300,7 +304,7 @@ impl TomlFile<'_> {
                     return Err(self.at(
                         v.span(),
                         key,
-                        format!("a probability per SPI transaction, below 1: got {x}"),
+                        format!("a probability per transaction or frame, below 1: got {x}"),
                     ));
                 }
                 Ok(x)
@@ -313,6 +317,33 @@ impl TomlFile<'_> {
             }
             if let Some(v) = &f.spi_torn {
                 faults.spi.torn = rate(v, "faults.spi_torn")?;
+            }
+            let serial = [
+                (
+                    &f.serial_corrupt,
+                    "faults.serial_corrupt",
+                    &mut faults.serial.corrupt,
+                ),
+                (
+                    &f.serial_drop,
+                    "faults.serial_drop",
+                    &mut faults.serial.drop,
+                ),
+                (
+                    &f.serial_duplicate,
+                    "faults.serial_duplicate",
+                    &mut faults.serial.duplicate,
+                ),
+                (
+                    &f.serial_delay,
+                    "faults.serial_delay",
+                    &mut faults.serial.delay,
+                ),
+            ];
+            for (v, key, slot) in serial {
+                if let Some(v) = v {
+                    *slot = rate(v, key)?;
+                }
             }
         }
 

@@ -281,6 +281,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
             UartTx {
                 line: to_host.clone(),
                 byte_time,
+                noise: None,
             },
             Unconnected,
             Unconnected,

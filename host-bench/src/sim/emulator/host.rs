@@ -49,6 +49,19 @@ pub struct Plan {
     /// The robot's encoders, when the slave did not power on with them.
     pub upload: Option<robot_math::odometry::Layout>,
     pub algorithm: protocol::spi::OdometryAlgorithm,
+    /// The line may lose or spoil frames (`--fault-serial-*`): send each setting again until
+    /// the master's telemetry shows it, as `play` and `record` do. On a quiet line each goes
+    /// once, so a clean run's timing is what it always was.
+    pub confirm: bool,
+}
+
+/// How long a setting or goal may take to show in the telemetry (20 ms apart) before it is
+/// sent again, on a noisy line.
+const CONFIRM_WITHIN: Duration = Duration::from_millis(60);
+
+/// Whether the master's latest telemetry satisfies `f`.
+fn telemetry_shows(log: &RefCell<HostLog>, f: impl Fn(&Telemetry) -> bool) -> bool {
+    log.borrow().last_telemetry.as_ref().is_some_and(f)
 }
 
 /// Run a host session for `plan` over a serial link whose bytes take `byte_time` each.
@@ -64,23 +77,25 @@ pub async fn session(
         path_start_delay_s,
         upload,
         algorithm,
+        confirm,
     } = plan;
     let reader = read_loop(rx, log.clone());
     let writer = async {
-        send(
-            &mut tx,
-            &log,
-            &HostToMaster::Hello {
-                protocol_version: PROTOCOL_VERSION,
-            },
-        )
-        .await;
-        // Wait for the hello reply before commanding anything.
+        let hello = HostToMaster::Hello {
+            protocol_version: PROTOCOL_VERSION,
+        };
+        send(&mut tx, &log, &hello).await;
+        // Wait for the hello reply before commanding anything (asking again if it is lost).
         let deadline = Instant::now() + Duration::from_secs(1);
+        let mut ask_again = Instant::now() + CONFIRM_WITHIN;
         while log.borrow().fingerprint_match.is_none() && log.borrow().problem.is_none() {
             if Instant::now() > deadline {
                 log.borrow_mut().problem = Some("no hello reply within 1 s".into());
                 return;
+            }
+            if confirm && Instant::now() > ask_again {
+                send(&mut tx, &log, &hello).await;
+                ask_again = Instant::now() + CONFIRM_WITHIN;
             }
             Timer::after_millis(1).await;
         }
@@ -90,21 +105,39 @@ pub async fn session(
         // One image serves every robot: this run's drive first, then its encoders.
         send(&mut tx, &log, &HostToMaster::SetDrive(scenario.drive)).await;
         if let Some(layout) = upload {
-            if let Err(e) = upload_robot(&mut tx, &log, &layout).await {
+            if let Err(e) = upload_robot(&mut tx, &log, &layout, confirm).await {
                 log.borrow_mut().problem = Some(e);
                 return;
             }
         }
         let (x, y, th) = scenario.start;
-        send(
-            &mut tx,
-            &log,
-            &HostToMaster::SetPose(Pose::from_si(x, y, th)),
-        )
-        .await;
+        let start = Pose::from_si(x, y, th);
+        send(&mut tx, &log, &HostToMaster::SetPose(start)).await;
         send(&mut tx, &log, &HostToMaster::SetOdometry(algorithm)).await;
         // Give the master a few polls to get both commands to the slave and acknowledged.
         Timer::after_millis(20).await;
+        if confirm {
+            // Until the slave's pose and method show in the telemetry (the robot stands still
+            // meanwhile, so its pose is the one set). The drive geometry has no echo in
+            // protocol v5: it goes again with every round.
+            let deadline = Instant::now() + Duration::from_secs(2);
+            loop {
+                Timer::after(CONFIRM_WITHIN).await;
+                if telemetry_shows(&log, |t| {
+                    t.slave_pose == start && t.slave_algorithm == algorithm
+                }) {
+                    break;
+                }
+                if Instant::now() > deadline {
+                    log.borrow_mut().problem =
+                        Some("the slave did not show the start pose and method within 2 s".into());
+                    return;
+                }
+                send(&mut tx, &log, &HostToMaster::SetDrive(scenario.drive)).await;
+                send(&mut tx, &log, &HostToMaster::SetPose(start)).await;
+                send(&mut tx, &log, &HostToMaster::SetOdometry(algorithm)).await;
+            }
+        }
         match scenario.motion {
             Motion::Pursue {
                 target_from,
@@ -122,9 +155,28 @@ pub async fn session(
                 });
                 send(&mut tx, &log, &follow).await;
                 log.borrow_mut().follow_sent_at = Some(secs(Instant::now()));
+                // On a noisy line, the goal again until the master says it follows one (each
+                // time it takes it, it starts over: the motion is timed from the last one).
+                let mut check_at = confirm.then(|| Instant::now() + CONFIRM_WITHIN);
+                let mut heartbeat_at = Instant::now() + HEARTBEAT;
                 loop {
-                    Timer::after(HEARTBEAT).await;
-                    send(&mut tx, &log, &HostToMaster::Heartbeat).await;
+                    Timer::at(check_at.map_or(heartbeat_at, |c| c.min(heartbeat_at))).await;
+                    if let Some(c) = check_at.filter(|c| Instant::now() >= *c) {
+                        let following = telemetry_shows(&log, |t| {
+                            t.status & protocol::serial::status::FOLLOWING != 0
+                        });
+                        check_at = if following || log.borrow().problem.is_some() {
+                            None
+                        } else {
+                            send(&mut tx, &log, &follow).await;
+                            log.borrow_mut().follow_sent_at = Some(secs(Instant::now()));
+                            Some(c + CONFIRM_WITHIN)
+                        };
+                    }
+                    if Instant::now() >= heartbeat_at {
+                        send(&mut tx, &log, &HostToMaster::Heartbeat).await;
+                        heartbeat_at = Instant::now() + HEARTBEAT;
+                    }
                 }
             }
             Motion::Track {
@@ -172,13 +224,24 @@ async fn upload_robot(
     tx: &mut impl Write,
     log: &RefCell<HostLog>,
     layout: &robot_math::odometry::Layout,
+    confirm: bool,
 ) -> Result<(), String> {
     let (commands, fingerprint) = firmware_slave::robot_wire::upload_commands(layout);
-    for c in commands {
-        send(tx, log, &HostToMaster::Slave(c)).await;
+    let commands: Vec<_> = commands.collect();
+    for c in &commands {
+        send(tx, log, &HostToMaster::Slave(*c)).await;
     }
-    let deadline = Instant::now() + Duration::from_secs(1);
+    let deadline = Instant::now() + Duration::from_secs(if confirm { 3 } else { 1 });
+    // On a noisy line every part goes again while the slave does not show the robot (a part
+    // applied twice overwrites its slot: the same robot).
+    let mut resend_at = Instant::now() + Duration::from_millis(400);
     loop {
+        if confirm && Instant::now() > resend_at {
+            for c in &commands {
+                send(tx, log, &HostToMaster::Slave(*c)).await;
+            }
+            resend_at = Instant::now() + Duration::from_millis(400);
+        }
         send(tx, log, &HostToMaster::Info).await;
         Timer::after_millis(10).await;
         if log.borrow().board.is_some_and(|b| b.robot == fingerprint) {

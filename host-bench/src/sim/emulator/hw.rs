@@ -424,6 +424,8 @@ pub struct UartRx(pub SharedLine);
 pub struct UartTx {
     pub line: SharedLine,
     pub byte_time: Duration,
+    /// Noise on this direction of the line, frame by frame (None: a quiet line).
+    pub noise: Option<Rc<RefCell<crate::sim::serial_noise::SerialNoise>>>,
 }
 
 impl embedded_io_async::ErrorType for UartRx {
@@ -456,7 +458,10 @@ impl embedded_io_async::Write for UartTx {
         // The frame is on the wire for its byte time; deliver it when the last byte lands.
         Timer::after(self.byte_time * buf.len() as u32).await;
         let mut line = self.line.borrow_mut();
-        line.bytes.extend(buf.iter().copied());
+        match &self.noise {
+            Some(noise) => line.bytes.extend(noise.borrow_mut().pass(buf)),
+            None => line.bytes.extend(buf.iter().copied()),
+        }
         if let Some(w) = line.reader.take() {
             w.wake();
         }

@@ -38,6 +38,7 @@ use serde::Serialize;
 use virtual_time::Simulation;
 
 use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
+use crate::sim::serial_noise::{SerialFaults, SerialNoise};
 use hw::*;
 use robot_math::motor::DcMotor;
 
@@ -182,6 +183,9 @@ pub struct Faults {
     pub host_silent_after: Option<f64>,
     /// Bit errors and lost transactions on the SPI wire, at rates per transaction.
     pub spi: hw::SpiFaults,
+    /// Noise on the serial line between host and master, per frame, each way.
+    #[serde(skip)]
+    pub serial: SerialFaults,
 }
 
 impl Options {
@@ -258,10 +262,18 @@ pub fn check_options(opts: &Options) -> Result<()> {
         ("--fault-spi-corrupt", opts.faults.spi.corrupt),
         ("--fault-spi-drop", opts.faults.spi.drop),
         ("--fault-spi-torn", opts.faults.spi.torn),
+        ("--fault-serial-corrupt", opts.faults.serial.corrupt),
+        ("--fault-serial-drop", opts.faults.serial.drop),
+        ("--fault-serial-duplicate", opts.faults.serial.duplicate),
+        ("--fault-serial-delay", opts.faults.serial.delay),
     ] {
         if !(0.0..1.0).contains(&rate) {
-            bail!("{name} is a probability per SPI transaction, in [0, 1): got {rate}");
+            bail!("{name} is a probability per transaction or frame, in [0, 1): got {rate}");
         }
+    }
+    let f = opts.faults.serial;
+    if f.corrupt + f.drop + f.duplicate + f.delay >= 1.0 {
+        bail!("the --fault-serial-* rates must add up to under 1");
     }
     Ok(())
 }
@@ -319,6 +331,17 @@ pub fn run_logged(
     let host_log = Rc::new(RefCell::new(host::HostLog::default()));
     let byte_time = byte_time(opts.baud);
 
+    // Serial noise each way, from streams of their own (a clean run draws nothing).
+    let noisy = opts.faults.serial != SerialFaults::default();
+    let noise = |salt: u64| {
+        noisy.then(|| {
+            Rc::new(RefCell::new(SerialNoise::new(
+                opts.faults.serial,
+                opts.seed ^ salt,
+            )))
+        })
+    };
+    let (noise_to_master, noise_to_host) = (noise(0x5e1a), noise(0x5e1b));
     let slave_off = opts.faults.slave_off_at.map(secs_to_instant);
     let slave_reset = opts.faults.slave_reset_at.map(secs_to_instant);
     let mut sim = Simulation::new()?;
@@ -340,6 +363,7 @@ pub fn run_logged(
             UartTx {
                 line: to_host.clone(),
                 byte_time,
+                noise: noise_to_host.clone(),
             },
             EmuMotors {
                 plant: plant.clone(),
@@ -359,6 +383,7 @@ pub fn run_logged(
             UartTx {
                 line: to_master.clone(),
                 byte_time,
+                noise: noise_to_master.clone(),
             },
             byte_time,
             host::Plan {
@@ -366,6 +391,7 @@ pub fn run_logged(
                 path_start_delay_s,
                 upload,
                 algorithm: opts.algorithm,
+                confirm: noisy,
             },
             host_log.clone(),
         ),
@@ -542,6 +568,12 @@ pub fn run_logged(
         spi_injected: wire.borrow().injected,
         spi_rejected_kinds_master: wire.borrow().rejected_by_master,
         spi_rejected_kinds_slave: wire.borrow().rejected_by_slave,
+        serial_injected_to_master: noise_to_master
+            .as_ref()
+            .map_or_else(Default::default, |n| n.borrow().injected),
+        serial_injected_to_host: noise_to_host
+            .as_ref()
+            .map_or_else(Default::default, |n| n.borrow().injected),
         master_view_of_slave_m: master_view.map(|f| {
             let (x, y) = protocol::Point {
                 x_um: f.pose.x_um,

@@ -92,6 +92,9 @@ pub struct Summary {
     /// `spi_rejected_by_master` and `spi_rejected_by_slave`).
     pub spi_rejected_kinds_master: hw::SpiRejections,
     pub spi_rejected_kinds_slave: hw::SpiRejections,
+    /// What the serial fault knobs did to the frames each way (all zero on a quiet line).
+    pub serial_injected_to_master: crate::sim::serial_noise::SerialInjected,
+    pub serial_injected_to_host: crate::sim::serial_noise::SerialInjected,
     /// The slave's pose in the newest frame the master took, and whether it is the slave's own
     /// at the end, to the micrometre and binary angle: however many frames were lost on the way,
     /// the odometry's cumulative counts lose nothing.
