@@ -44,9 +44,16 @@ pub fn fault_check(scenario: &Scenario, opts: &Options, faulty: &Summary) -> Res
     };
     let clean = run(scenario, &clean_opts)?.summary;
     let script = std::mem::take(&mut *duties.lock().unwrap_or_else(|e| e.into_inner()));
+    // The same motion under the same SPI faults, on a quiet serial line: the host's settings
+    // must reach the slave while the robot stands, as in the clean run, and serial noise
+    // that delayed them would let the replayed duties move it first.
     let same_opts = Options {
         keep_log: false,
         duties: hw::DutySource::Replay(Arc::new(script)),
+        faults: Faults {
+            serial: Default::default(),
+            ..opts.faults.clone()
+        },
         ..opts.clone()
     };
     let same = run(scenario, &same_opts)?.summary;
