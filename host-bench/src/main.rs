@@ -89,6 +89,11 @@ enum Command {
         /// part way through: both boards keep a torn frame.
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_spi_torn: Option<f64>,
+        /// Fault injection: the probability per SPI transaction, [0, 1), that the slave is late
+        /// to re-arm: the master reads the slave's previous frame again and the slave misses
+        /// the transaction (SPI has no other duplicate or delayed frame: the master clocks it).
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_spi_duplicate: Option<f64>,
         /// Fault injection: the probability per serial frame between host and master, each
         /// way, [0, 1), that it has a bit flipped; the three below that it is lost, arrives
         /// twice, or arrives after the next one. On a noisy line the host sends each setting
@@ -256,6 +261,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             fault_spi_corrupt,
             fault_spi_drop,
             fault_spi_torn,
+            fault_spi_duplicate,
             fault_serial_corrupt,
             fault_serial_drop,
             fault_serial_duplicate,
@@ -296,6 +302,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             f.spi.corrupt = fault_spi_corrupt.unwrap_or(f.spi.corrupt);
             f.spi.drop = fault_spi_drop.unwrap_or(f.spi.drop);
             f.spi.torn = fault_spi_torn.unwrap_or(f.spi.torn);
+            f.spi.duplicate = fault_spi_duplicate.unwrap_or(f.spi.duplicate);
             f.serial.corrupt = fault_serial_corrupt.unwrap_or(f.serial.corrupt);
             f.serial.drop = fault_serial_drop.unwrap_or(f.serial.drop);
             f.serial.duplicate = fault_serial_duplicate.unwrap_or(f.serial.duplicate);
@@ -319,7 +326,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 None => emulator::run(&scenario, &opts)?,
             };
             let spi = opts.faults.spi;
-            if spi.corrupt > 0.0 || spi.drop > 0.0 || spi.torn > 0.0 {
+            if spi != Default::default() {
                 let check = emulator::fault_check(&scenario, &opts, &run.summary)?;
                 run.summary.fault_check = Some(check);
             }

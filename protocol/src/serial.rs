@@ -205,7 +205,8 @@ pub struct Telemetry {
 pub struct LinkCounters {
     /// SPI frames from the slave that passed the CRC.
     pub spi_ok: u32,
-    /// SPI frames from the slave that failed the CRC or did not decode, plus bus errors.
+    /// SPI frames from the slave that failed the CRC or did not decode, bus errors, and
+    /// frames the slave sent twice (late to re-arm: the frame the master had already).
     pub spi_rejected: u32,
     /// Master frames the slave reports as rejected (its own CRC check).
     pub slave_rx_rejected: u32,

@@ -474,3 +474,39 @@ fn spi_bit_errors_and_lost_transactions_lose_nothing() {
         });
     }
 }
+
+/// A slave late to re-arm sends its previous frame again (the only duplicate a synchronous bus
+/// has). The master must know it for the frame it already read: counted with the rejected,
+/// never taken as fresh, and never used to learn the boards' clock offset (its arming was not
+/// the end of the exchange before). Steering on it, or learning from it, moves the run; so
+/// does a missed one. Together with issue 10's rates: every injected fault is counted where it
+/// lands, no slave reset is imagined, and the same motion ends bit for bit where the clean
+/// run's did.
+#[test]
+fn frames_a_late_slave_sends_twice_are_known_and_set_aside() {
+    let scenario = Scenario::seed004_pursuit();
+    for (seed, drop) in [(1, 0.0), (4, 0.05)] {
+        let mut opts = Options::new(&scenario);
+        opts.seed = seed;
+        opts.keep_log = false;
+        opts.faults.spi.duplicate = 0.05;
+        opts.faults.spi.drop = drop;
+        opts.faults.spi.corrupt = 0.01;
+        let faulty = emulator::run(&scenario, &opts).unwrap().summary;
+        let (i, m) = (faulty.spi_injected, faulty.spi_rejected_kinds_master);
+        assert!(i.duplicated > 200 && m.repeated > 200, "{i:?} {m:?}");
+        // Only a repeat of a frame that reached the master whole is one it already had.
+        assert!(m.repeated <= i.duplicated, "{i:?} {m:?}");
+        assert_eq!(m.total(), faulty.spi_rejected_by_master, "{faulty:?}");
+        assert_eq!(
+            faulty.spi_rejected_by_master,
+            i.corrupted_to_master + i.dropped + m.repeated,
+            "{faulty:?}"
+        );
+        assert_eq!(faulty.slave_reset_told_s, None);
+        assert_eq!(faulty.master_view_matches_slave, Some(true));
+        assert!(faulty.arrived && faulty.distance_to_goal_m < GOAL_TOLERANCE_M);
+        let check = emulator::fault_check(&scenario, &opts, &faulty).unwrap();
+        assert!(check.same_motion_equals_clean, "seed {seed}: {check:?}");
+    }
+}

@@ -7,9 +7,16 @@ fn t(ms: u64) -> Instant {
     Instant::from_millis(ms)
 }
 
+/// A frame as a live slave sends it, each armed at its own instant (a frame armed when the
+/// last one was is that one again, and set aside).
 fn slave_frame(seq: u16, ack: u8, x_um: i32) -> SlaveFrame {
+    static ARMED_US: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(1);
+    let armed_us = ARMED_US.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
     SlaveFrame {
         seq,
+        // Its pose sampled as it was armed.
+        armed_us,
+        time_us: armed_us,
         command_ack: ack,
         pose: Pose {
             x_um,
@@ -336,6 +343,34 @@ fn frame_age_comes_from_the_slave_clock() {
     c.on_slave_frame(t(2_012), Ok(f));
     assert_eq!(c.slave.unwrap().1.as_micros(), 2_012_000);
     assert_ne!(c.status() & status::SLAVE_RESET, 0);
+}
+
+/// A slave late to re-arm sends its frame again (circular DMA). The repeat must not count as a
+/// fresh frame, nor date the next one: taken as armed at the repeat's exchange, the next frame
+/// would move the clocks' offset by a poll period per repeat and, two repeats in a row, pass
+/// for a slave reset (the emulator's `--fault-spi-duplicate` found that).
+#[test]
+fn a_frame_sent_twice_is_set_aside() {
+    let mut c = ctl();
+    c.on_host_message(t(0), follow(500_000));
+    poll(&mut c, 100, 1, 40_000_000, 0);
+    poll(&mut c, 102, 2, 40_000_000, 0);
+    let twice = c.slave_latest.unwrap();
+    let rejected = c.counters().spi_rejected;
+    // Read again at 104 and 106 ms; the slave's next frame, armed at 102 ms, comes at 108 ms.
+    c.on_slave_frame(t(104), Ok(twice));
+    c.on_slave_frame(t(106), Ok(twice));
+    assert_eq!(c.counters().spi_rejected, rejected + 2);
+    let mut f = slave_frame(3, 0, 0);
+    f.armed_us = (102_000u64.wrapping_sub(40_000_000)) as u32;
+    f.time_us = f.armed_us.wrapping_sub(500);
+    c.on_slave_frame(t(108), Ok(f));
+    assert_eq!(c.status() & status::SLAVE_RESET, 0);
+    // Dated by the offset learned before the repeats: sampled 500 µs before 102 ms.
+    assert_eq!(c.slave.unwrap().1.as_micros(), 102_000 - 500);
+    poll(&mut c, 110, 4, 40_000_000, 0);
+    assert_eq!(c.status() & status::SLAVE_RESET, 0);
+    assert!(matches!(c.control(t(111)), Drive::Duty(_)));
 }
 
 /// Polls every 2 ms; the slave arms each frame `lag_us` after the exchange before ends, on a

@@ -69,17 +69,30 @@ pub fn summary_text(s: &Summary) -> String {
         spir = s.spi_frames_rejected,
         inj = {
             let i = &s.spi_injected;
-            if i.corrupted_to_master + i.corrupted_to_slave + i.dropped + i.torn > 0 {
-                let torn = if i.torn > 0 {
+            if i.corrupted_to_master + i.corrupted_to_slave + i.dropped + i.torn + i.duplicated > 0
+            {
+                let mut torn = if i.torn > 0 {
                     format!(", {} torn", i.torn)
                 } else {
                     String::new()
                 };
+                if i.duplicated > 0 {
+                    torn += &format!(
+                        ", {} sent twice by a slave late to re-arm ({} of them frames the \
+                         master already had)",
+                        i.duplicated, s.spi_rejected_kinds_master.repeated
+                    );
+                }
                 let (m, sl) = (&s.spi_rejected_kinds_master, &s.spi_rejected_kinds_slave);
+                let rep = if m.repeated > 0 {
+                    format!(", {} repeated (to the master)", m.repeated)
+                } else {
+                    String::new()
+                };
                 format!(
                     " ({} by the master, {} by the slave; injected: {} corrupted to the master, \
                      {} to the slave, {} transactions lost{torn}; by why: {} and {} bad checks, \
-                     {} and {} of the wrong kind, {} and {} undecodable, {} and {} non-canonical)",
+                     {} and {} of the wrong kind, {} and {} undecodable, {} and {} non-canonical{rep})",
                     s.spi_rejected_by_master,
                     s.spi_rejected_by_slave,
                     i.corrupted_to_master,

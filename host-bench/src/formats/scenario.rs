@@ -103,6 +103,7 @@ struct RawFaults {
     spi_corrupt: Option<Spanned<f64>>,
     spi_drop: Option<Spanned<f64>>,
     spi_torn: Option<Spanned<f64>>,
+    spi_duplicate: Option<Spanned<f64>>,
     serial_corrupt: Option<Spanned<f64>>,
     serial_drop: Option<Spanned<f64>>,
     serial_duplicate: Option<Spanned<f64>>,
@@ -317,6 +318,9 @@ impl TomlFile<'_> {
             }
             if let Some(v) = &f.spi_torn {
                 faults.spi.torn = rate(v, "faults.spi_torn")?;
+            }
+            if let Some(v) = &f.spi_duplicate {
+                faults.spi.duplicate = rate(v, "faults.spi_duplicate")?;
             }
             let serial = [
                 (

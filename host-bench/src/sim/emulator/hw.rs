@@ -179,6 +179,9 @@ pub struct SpiWire {
     rng: rand_chacha::ChaCha8Rng,
     /// The slave has power (a lost transaction re-arms its frame only while it does).
     powered: bool,
+    /// The frame the slave sent in the last transaction it took part in, and whether it
+    /// reached the master unchanged (what a late re-arm sends again).
+    last_from_slave: Option<([u8; SPI_FRAME_LEN], bool)>,
 }
 
 /// Fault rates on the SPI wire, each a probability per transaction in [0, 1).
@@ -192,6 +195,12 @@ pub struct SpiFaults {
     /// The transaction torn: chip select rises part way through, and both sides keep the bytes
     /// shifted so far, the rest of each frame idle (0x00).
     pub torn: f64,
+    /// The slave late to re-arm: its transmit DMA, circular, sends the frame it sent last
+    /// time again, and it misses this transaction (its new frame stays armed for the next).
+    /// The master gets a valid frame that it may have had already. (A synchronous bus has no
+    /// other duplicate and no delayed frame: the master clocks every bit, so a late slave
+    /// shows as this, or as an idle line, which is `drop`.)
+    pub duplicate: f64,
 }
 
 /// What the wire did to the frames.
@@ -201,6 +210,7 @@ pub struct SpiInjected {
     pub corrupted_to_slave: u64,
     pub dropped: u64,
     pub torn: u64,
+    pub duplicated: u64,
 }
 
 /// Frames refused, by why (`protocol::spi::SpiFrameError`), as the receiving board's decoder
@@ -213,6 +223,9 @@ pub struct SpiRejections {
     pub kind: u64,
     pub decode: u64,
     pub non_canonical: u64,
+    /// A valid frame the master had already read (the slave sent it twice): nothing in it
+    /// is new. Only the master counts these.
+    pub repeated: u64,
 }
 
 impl SpiRejections {
@@ -228,7 +241,7 @@ impl SpiRejections {
     }
 
     pub fn total(&self) -> u64 {
-        self.crc + self.kind + self.decode + self.non_canonical
+        self.crc + self.kind + self.decode + self.non_canonical + self.repeated
     }
 }
 
@@ -248,6 +261,7 @@ impl SpiWire {
             rejected_by_slave: SpiRejections::default(),
             rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5350_495f_4641_554c),
             powered: true,
+            last_from_slave: None,
         }
     }
 
@@ -277,6 +291,7 @@ impl SpiWire {
         self.armed = None;
         self.delivered = None;
         self.slave_waker = None;
+        self.last_from_slave = None;
     }
 
     /// The slave has power again (it boots, then arms its first frame).
@@ -331,7 +346,22 @@ impl SlaveBus for EmuMasterBus {
             corrupt,
             drop,
             torn,
+            duplicate,
         } = w.faults;
+        if let Some((again, seen)) = w.last_from_slave.filter(|_| w.happens(duplicate)) {
+            w.injected.duplicated += 1;
+            // The slave's new frame waits for the next transaction, as after a lost one.
+            if w.powered && w.armed.is_none() {
+                w.armed = from_slave;
+            }
+            *rx = again;
+            if seen {
+                w.rejected_by_master.repeated += 1;
+            }
+            // Read now, whole: the master has it.
+            w.last_from_slave = Some((again, true));
+            return Ok(());
+        }
         if w.happens(drop) {
             w.injected.dropped += 1;
             // The slave never saw this transaction: its frame stays armed for the next.
@@ -344,6 +374,7 @@ impl SlaveBus for EmuMasterBus {
         }
         match from_slave {
             Some(mut bytes) => {
+                let sent = bytes;
                 let mut to_slave = *tx;
                 // Which directions the wire changed. A frame it left alone is the sender's own
                 // `spi::encode`, which always decodes (the protocol's round-trip and canonical
@@ -364,6 +395,7 @@ impl SlaveBus for EmuMasterBus {
                     to_master_changed = true;
                 }
                 *rx = bytes;
+                w.last_from_slave = Some((sent, !to_master_changed));
                 if w.happens(corrupt) {
                     w.injected.corrupted_to_slave += 1;
                     w.flip_a_bit(&mut to_slave);
@@ -385,6 +417,7 @@ impl SlaveBus for EmuMasterBus {
             None => {
                 *rx = [0x00; SPI_FRAME_LEN];
                 w.rejected_by_master.count::<protocol::spi::SlaveFrame>(rx);
+                w.last_from_slave = None;
             }
         }
         Ok(())
