@@ -33,6 +33,9 @@ pub struct HostLog {
     /// Virtual time (s) the motion started: the follow-target command was sent, or the
     /// tracked path's first sample.
     pub follow_sent_at: Option<f64>,
+    /// How often the drive geometry went to the master before it showed as taken (on a
+    /// noisy line; 0 on a quiet one, where it goes once unconfirmed).
+    pub drive_sends: u32,
     /// Why the session failed, if it did.
     pub problem: Option<String>,
 }
@@ -103,7 +106,11 @@ pub async fn session(
             return;
         }
         // One image serves every robot: this run's drive first, then its encoders.
-        send(&mut tx, &log, &HostToMaster::SetDrive(scenario.drive)).await;
+        let lands_within = byte_time * serial::MAX_FRAME as u32 + Duration::from_millis(1);
+        if let Err(e) = set_drive(&mut tx, &log, &scenario.drive, confirm, lands_within).await {
+            log.borrow_mut().problem = Some(e);
+            return;
+        }
         if let Some(layout) = upload {
             if let Err(e) = upload_robot(&mut tx, &log, &layout, confirm).await {
                 log.borrow_mut().problem = Some(e);
@@ -118,8 +125,7 @@ pub async fn session(
         Timer::after_millis(20).await;
         if confirm {
             // Until the slave's pose and method show in the telemetry (the robot stands still
-            // meanwhile, so its pose is the one set). The drive geometry has no echo in
-            // protocol v5: it goes again with every round.
+            // meanwhile, so its pose is the one set).
             let deadline = Instant::now() + Duration::from_secs(2);
             loop {
                 Timer::after(CONFIRM_WITHIN).await;
@@ -133,7 +139,6 @@ pub async fn session(
                         Some("the slave did not show the start pose and method within 2 s".into());
                     return;
                 }
-                send(&mut tx, &log, &HostToMaster::SetDrive(scenario.drive)).await;
                 send(&mut tx, &log, &HostToMaster::SetPose(start)).await;
                 send(&mut tx, &log, &HostToMaster::SetOdometry(algorithm)).await;
             }
@@ -255,6 +260,58 @@ async fn upload_robot(
                 log.borrow().board
             ));
         }
+    }
+}
+
+/// The drive geometry to the master. Protocol v5 has no echo of it, so on a noisy line the
+/// master's frame counters in its telemetry tell: sent while nothing else is on its way, it
+/// arrived when the count of accepted frames rises and that of refused ones does not. (The
+/// line holds a frame back only until one passes, and a spoilt geometry counts as refused.)
+/// Sent again until then, as often as it takes within 2 s; applied twice it is the same drive.
+async fn set_drive(
+    tx: &mut impl Write,
+    log: &RefCell<HostLog>,
+    drive: &protocol::serial::DriveGeometry,
+    confirm: bool,
+    lands_within: Duration,
+) -> Result<(), String> {
+    let msg = HostToMaster::SetDrive(*drive);
+    if !confirm {
+        send(tx, log, &msg).await;
+        return Ok(());
+    }
+    let deadline = Instant::now() + Duration::from_secs(2);
+    loop {
+        // What the master had counted once everything sent before had landed.
+        let before = counts_after(log, Instant::now() + lands_within, deadline).await?;
+        send(tx, log, &msg).await;
+        let after = counts_after(log, Instant::now() + lands_within, deadline).await?;
+        log.borrow_mut().drive_sends += 1;
+        if after.0 != before.0 && after.1 == before.1 {
+            return Ok(());
+        }
+    }
+}
+
+/// The master's `(accepted, refused)` host-frame counts in its first telemetry made at `at` or
+/// later (the emulated host shares the boards' virtual clock).
+async fn counts_after(
+    log: &RefCell<HostLog>,
+    at: Instant,
+    deadline: Instant,
+) -> Result<(u32, u32), String> {
+    loop {
+        let counts = log.borrow().last_telemetry.as_ref().and_then(|t| {
+            (t.time_us >= at.as_micros())
+                .then_some((t.counters.serial_ok, t.counters.serial_rejected))
+        });
+        if let Some(c) = counts {
+            return Ok(c);
+        }
+        if Instant::now() > deadline {
+            return Err("the master did not show the drive geometry taken within 2 s".into());
+        }
+        Timer::after_millis(1).await;
     }
 }
 

@@ -592,6 +592,7 @@ pub fn run_logged(
         protocol_version: protocol::PROTOCOL_VERSION,
         schema_fingerprint_match: h.fingerprint_match == Some(true),
         robot_uploaded: h.robot_uploaded,
+        serial_drive_sends: (h.drive_sends > 0).then_some(h.drive_sends),
         slave_updates,
         firmware_polls: sim.polls(),
         slave_reset_told_s: reset_told,

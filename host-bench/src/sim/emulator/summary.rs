@@ -95,6 +95,9 @@ pub struct Summary {
     /// What the serial fault knobs did to the frames each way (all zero on a quiet line).
     pub serial_injected_to_master: crate::sim::serial_noise::SerialInjected,
     pub serial_injected_to_host: crate::sim::serial_noise::SerialInjected,
+    /// On a noisy line, how often the host sent the drive geometry before the master's frame
+    /// counters showed it taken (null on a quiet line: sent once).
+    pub serial_drive_sends: Option<u32>,
     /// The slave's pose in the newest frame the master took, and whether it is the slave's own
     /// at the end, to the micrometre and binary angle: however many frames were lost on the way,
     /// the odometry's cumulative counts lose nothing.
