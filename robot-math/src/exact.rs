@@ -365,7 +365,7 @@ impl ExactOdometry {
 
 /// `x / 2` (rounding toward zero) by shifts: at opt-level "z" a 64-bit division, even by
 /// two, is a library call on the M3.
-#[inline]
+#[inline(always)]
 fn half_toward_zero(x: i64) -> i64 {
     (x + ((x as u64) >> 63) as i64) >> 1
 }

@@ -14,7 +14,7 @@ const PI_Q29: i64 = 1_686_629_713; // round(π · 2^29)
 /// Multiply two Q31 numbers of magnitude below 2^31, rounding to nearest: one 32 × 32-bit
 /// multiply (a 64 × 64 one is three on the M3, and the divisions the old Horner form took
 /// were library calls).
-#[inline]
+#[inline(always)]
 fn mul_q31(a: i32, b: i32) -> i32 {
     ((a as i64 * b as i64 + (1 << 30)) >> 31) as i32
 }
@@ -80,7 +80,7 @@ pub fn mul_q30(a: i64, f: i64) -> i64 {
 /// `round(a · f / 2^30)` for |a| < 2^46 and |f| <= 2^31 without overflowing 64 bits: `a` is
 /// split into a high part (exact multiple of 2^16) and a 16-bit low part, each multiplied and
 /// rounded separately (at most one unit of error in the result).
-#[inline]
+#[inline(always)]
 pub fn mul_q30_wide(a: i64, f: i64) -> i64 {
     if a == a as i32 as i64 && f == f as i32 as i64 {
         // Both fit 32 bits (a step's displacement, nearly always): one exact multiply.
@@ -98,7 +98,7 @@ fn mul_q30_split(a: i64, f: i64) -> i64 {
 }
 
 /// Shift right by `n` with rounding to nearest, symmetric about zero (no drift towards −∞).
-#[inline]
+#[inline(always)]
 pub fn shr_round(a: i64, n: u32) -> i64 {
     if a >= 0 {
         (a + (1 << (n - 1))) >> n
