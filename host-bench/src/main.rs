@@ -95,8 +95,9 @@ enum Command {
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_spi_duplicate: Option<f64>,
         /// Fault injection: the probability per serial frame between host and master, each
-        /// way, [0, 1), that it has a bit flipped; the three below that it is lost, arrives
-        /// twice, or arrives after the next one. On a noisy line the host sends each setting
+        /// way, [0, 1), that it has a bit flipped; the four below that it is lost, arrives
+        /// twice, arrives after the next one, or is torn (a piece without its end, run into the
+        /// next frame). Together under 1. On a noisy line the host sends each setting
         /// and the goal again until the master's telemetry shows it.
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_serial_corrupt: Option<f64>,
@@ -106,6 +107,8 @@ enum Command {
         fault_serial_duplicate: Option<f64>,
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_serial_delay: Option<f64>,
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_serial_torn: Option<f64>,
     },
     /// Every seed case, every sensor mode, all four odometry methods side by side, with the
     /// papers' reported figures.
@@ -266,6 +269,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             fault_serial_drop,
             fault_serial_duplicate,
             fault_serial_delay,
+            fault_serial_torn,
         } => {
             let scenario = match Scenario::builtin(&scenario) {
                 Some(s) => s,
@@ -307,6 +311,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             f.serial.drop = fault_serial_drop.unwrap_or(f.serial.drop);
             f.serial.duplicate = fault_serial_duplicate.unwrap_or(f.serial.duplicate);
             f.serial.delay = fault_serial_delay.unwrap_or(f.serial.delay);
+            f.serial.torn = fault_serial_torn.unwrap_or(f.serial.torn);
             // The log's rows only stream to the files of --out: a run of any length keeps
             // its summary alone (and a thinned copy for the plot).
             opts.keep_log = false;

@@ -324,8 +324,8 @@ fn a_corrupted_and_a_dropped_frame_are_recovered_with_nothing_lost() {
 }
 
 /// Issue 10's rates on both links at once: 1 % of serial frames bit-flipped and 5 % lost, each
-/// way, and the same on the SPI wire (plus 1 % of SPI frames sent twice by a slave late to
-/// re-arm). Every event still arrives, the board still computes
+/// way, and the same on the SPI wire (plus 1 % of serial frames duplicated, delayed and torn,
+/// and 1 % of SPI frames sent twice by a slave late to re-arm). Every event still arrives, the board still computes
 /// exactly the host's poses, and the same ones as on a quiet board. (Written, it found two
 /// stalls: a stream whose last SPI chunk was lost together with the one ack that would have
 /// shown it was never sent again, and a setting command lost on the serial line was never
@@ -344,6 +344,7 @@ fn a_noisy_serial_line_and_spi_wire_lose_nothing_and_stay_bit_exact() {
         drop: 0.05,
         duplicate: 0.01,
         delay: 0.01,
+        torn: 0.01,
     };
     opts.faults.spi.corrupt = 0.01;
     opts.faults.spi.drop = 0.05;

@@ -203,7 +203,7 @@ fn losing_the_slave_stops_the_motors_within_the_link_timeout() {
 }
 
 /// Serial noise at issue 10's rates between host and master (1 % of frames bit-flipped, 5 %
-/// lost, 1 % duplicated, 1 % delayed, each way): the host sends each setting, the robot and
+/// lost, 1 % duplicated, 1 % delayed, 1 % torn, each way): the host sends each setting, the robot and
 /// the goal again until the master shows them, and the runs end as clean ones do, on the
 /// pursuit and on a tracked path whose robot is uploaded over the line.
 #[test]
@@ -214,6 +214,7 @@ fn a_noisy_serial_line_to_the_host_still_gets_the_robot_there() {
             drop: 0.05,
             duplicate: 0.01,
             delay: 0.01,
+            torn: 0.01,
         }
     };
     let mut rejected = 0;
@@ -248,7 +249,8 @@ fn a_noisy_serial_line_to_the_host_still_gets_the_robot_there() {
 /// The drive geometry has no echo in the protocol: a lost one left the master driving seed
 /// 002's differential chassis as its power-on 3-omni, 7 m off the path. On a noisy line the
 /// host now sends it until the master's frame counters show it taken. At a quarter of the
-/// frames lost, these two seeds lose it (checked: sent once, both runs end 7 m away).
+/// frames lost, these two seeds lose it (checked, sent once: seed 8's robot ends 7 m away,
+/// seed 1's slave never takes its robot, the upload going wrong on the wrong drive).
 #[test]
 fn a_drive_geometry_lost_on_the_line_is_sent_until_the_master_took_it() {
     let path = concat!(
@@ -256,7 +258,7 @@ fn a_drive_geometry_lost_on_the_line_is_sent_until_the_master_took_it() {
         "/../scenarios/seed002-square.toml"
     );
     let square = host_bench::formats::scenario::load(std::path::Path::new(path)).unwrap();
-    for seed in [5, 7] {
+    for seed in [1, 8] {
         let mut opts = Options::new(&square);
         opts.seed = seed;
         opts.keep_log = false;

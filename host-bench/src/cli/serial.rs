@@ -292,6 +292,15 @@ pub struct VirtualBoardArgs {
         allow_negative_numbers = true
     )]
     pub fault_serial_delay: f64,
+    /// Fault injection: the probability per serial frame, [0, 1), that it is torn: a piece
+    /// arrives without its end and runs into the next frame.
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_serial_torn: f64,
     /// Fault injection: the probability per SPI transaction, [0, 1), that a frame has a bit
     /// flipped (each direction on its own).
     #[arg(
@@ -352,6 +361,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         ("--fault-serial-drop", a.fault_serial_drop),
         ("--fault-serial-duplicate", a.fault_serial_duplicate),
         ("--fault-serial-delay", a.fault_serial_delay),
+        ("--fault-serial-torn", a.fault_serial_torn),
         ("--fault-spi-corrupt", a.fault_spi_corrupt),
         ("--fault-spi-drop", a.fault_spi_drop),
         ("--fault-spi-torn", a.fault_spi_torn),
@@ -366,9 +376,10 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         drop: a.fault_serial_drop,
         duplicate: a.fault_serial_duplicate,
         delay: a.fault_serial_delay,
+        torn: a.fault_serial_torn,
     };
     let f = opts.faults.serial;
-    if f.corrupt + f.drop + f.duplicate + f.delay >= 1.0 {
+    if f.total() >= 1.0 {
         bail!("the --fault-serial-* rates must add up to under 1");
     }
     opts.faults.spi.corrupt = a.fault_spi_corrupt;

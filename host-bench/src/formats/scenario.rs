@@ -108,6 +108,7 @@ struct RawFaults {
     serial_drop: Option<Spanned<f64>>,
     serial_duplicate: Option<Spanned<f64>>,
     serial_delay: Option<Spanned<f64>>,
+    serial_torn: Option<Spanned<f64>>,
 }
 
 /// Every table is a single table.
@@ -342,6 +343,11 @@ impl TomlFile<'_> {
                     &f.serial_delay,
                     "faults.serial_delay",
                     &mut faults.serial.delay,
+                ),
+                (
+                    &f.serial_torn,
+                    "faults.serial_torn",
+                    &mut faults.serial.torn,
                 ),
             ];
             for (v, key, slot) in serial {

@@ -89,6 +89,9 @@ impl Link {
                 self.stats.events_frames_corrupted += 1;
             }
         }
+        // A delimiter after the frame's own: a piece of this frame torn on the line is closed
+        // off by it as one bad frame, instead of running into (and spoiling) the next.
+        frame.push(0);
         self.port
             .write_all(&frame)
             .with_context(|| format!("writing to {}", self.name))?;

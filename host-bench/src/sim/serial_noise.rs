@@ -1,8 +1,10 @@
 //! Noise on one direction of a serial line, frame by frame: the virtual board's fault knob.
 //!
 //! Frames end at a 0x00 byte (COBS). Each whole frame passes, is lost, has one bit flipped
-//! (which may also split it, if the flip makes a 0x00), arrives twice, or is held back and
-//! arrives after the next frame, at the given rates, drawn from its own seeded generator so a
+//! (which may also split it, if the flip makes a 0x00), arrives twice, is held back and
+//! arrives after the next frame, or is torn (the line drops out part way: a piece of the
+//! frame arrives without its end, so the receiver reads it and the next frame as one bad
+//! frame), at the given rates, drawn from its own seeded generator so a
 //! run can be repeated. A frame's bytes are held until its end arrives,
 //! so a noisy line adds at most one frame of latency; a quiet one passes bytes straight on.
 
@@ -17,6 +19,7 @@ pub struct SerialInjected {
     pub dropped: u64,
     pub duplicated: u64,
     pub delayed: u64,
+    pub torn: u64,
 }
 
 /// Rates per frame, each in [0, 1) and together under 1.
@@ -26,6 +29,14 @@ pub struct SerialFaults {
     pub drop: f64,
     pub duplicate: f64,
     pub delay: f64,
+    pub torn: f64,
+}
+
+impl SerialFaults {
+    /// The chance that a frame is touched at all (the rates share one draw: under 1).
+    pub fn total(&self) -> f64 {
+        self.corrupt + self.drop + self.duplicate + self.delay + self.torn
+    }
 }
 
 pub struct SerialNoise {
@@ -58,6 +69,7 @@ impl SerialNoise {
             drop,
             duplicate,
             delay,
+            torn,
         } = self.faults;
         let mut out = Vec::with_capacity(bytes.len());
         for &b in bytes {
@@ -87,6 +99,15 @@ impl SerialNoise {
             {
                 self.injected.delayed += 1;
                 self.held = Some(frame);
+                continue;
+            } else if r >= corrupt + duplicate + delay
+                && r < corrupt + duplicate + delay + torn
+                && frame.len() > 1
+            {
+                // A piece without the delimiter: the next frame's bytes run on after it.
+                self.injected.torn += 1;
+                let keep = self.rng.random_range(1..frame.len());
+                out.extend_from_slice(&frame[..keep]);
                 continue;
             }
             out.extend_from_slice(&frame);
@@ -133,6 +154,25 @@ mod tests {
         // One bit of one byte of each damaged frame, never its end.
         let damaged = out.chunks(4).filter(|f| *f != [3, 7, 9, 0]).count();
         assert_eq!(damaged as u64, i.corrupted);
+    }
+
+    #[test]
+    fn a_torn_frame_arrives_as_a_piece_run_into_the_next() {
+        let input = frames(2_000);
+        let faults = SerialFaults {
+            torn: 0.05,
+            ..Default::default()
+        };
+        let mut line = SerialNoise::new(faults, 5);
+        let out = line.pass(&input);
+        let i = line.injected;
+        assert!((60..140).contains(&i.torn), "{i:?}");
+        // Each tear loses its frame's end: one delimiter fewer, and a piece of 1-3 bytes runs
+        // into the frame after it.
+        let ends = out.iter().filter(|&&b| b == 0).count() as u64;
+        assert_eq!(ends, 2_000 - i.torn);
+        let runs_on = out.split(|&b| b == 0).filter(|f| f.len() > 3).count() as u64;
+        assert!(runs_on > 0 && runs_on <= i.torn, "{runs_on} {i:?}");
     }
 
     #[test]

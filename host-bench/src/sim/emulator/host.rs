@@ -70,7 +70,7 @@ fn telemetry_shows(log: &RefCell<HostLog>, f: impl Fn(&Telemetry) -> bool) -> bo
 /// Run a host session for `plan` over a serial link whose bytes take `byte_time` each.
 pub async fn session(
     rx: impl Read,
-    mut tx: impl Write,
+    tx: impl Write,
     byte_time: Duration,
     plan: Plan,
     log: Rc<RefCell<HostLog>>,
@@ -83,6 +83,10 @@ pub async fn session(
         confirm,
     } = plan;
     let reader = read_loop(rx, log.clone());
+    let mut tx = HostTx {
+        line: tx,
+        flush: confirm,
+    };
     let writer = async {
         let hello = HostToMaster::Hello {
             protocol_version: PROTOCOL_VERSION,
@@ -226,7 +230,7 @@ pub async fn session(
 /// (`serial::session::load_robot`): the parts through the master, then board info until the
 /// slave reports running them.
 async fn upload_robot(
-    tx: &mut impl Write,
+    tx: &mut HostTx<impl Write>,
     log: &RefCell<HostLog>,
     layout: &robot_math::odometry::Layout,
     confirm: bool,
@@ -236,7 +240,8 @@ async fn upload_robot(
     for c in &commands {
         send(tx, log, &HostToMaster::Slave(*c)).await;
     }
-    let deadline = Instant::now() + Duration::from_secs(if confirm { 3 } else { 1 });
+    let within_s = if confirm { 3 } else { 1 };
+    let deadline = Instant::now() + Duration::from_secs(within_s);
     // On a noisy line every part goes again while the slave does not show the robot (a part
     // applied twice overwrites its slot: the same robot).
     let mut resend_at = Instant::now() + Duration::from_millis(400);
@@ -255,7 +260,7 @@ async fn upload_robot(
         }
         if Instant::now() > deadline {
             return Err(format!(
-                "the slave did not take the robot (fingerprint {:08x}) within 1 s: {:?}",
+                "the slave did not take the robot (fingerprint {:08x}) within {within_s} s: {:?}",
                 fingerprint,
                 log.borrow().board
             ));
@@ -269,7 +274,7 @@ async fn upload_robot(
 /// line holds a frame back only until one passes, and a spoilt geometry counts as refused.)
 /// Sent again until then, as often as it takes within 2 s; applied twice it is the same drive.
 async fn set_drive(
-    tx: &mut impl Write,
+    tx: &mut HostTx<impl Write>,
     log: &RefCell<HostLog>,
     drive: &protocol::serial::DriveGeometry,
     confirm: bool,
@@ -333,11 +338,24 @@ fn track_point(s: Sample) -> TrackPoint {
     }
 }
 
-async fn send(tx: &mut impl Write, log: &RefCell<HostLog>, msg: &HostToMaster) {
+/// The host's end of the line. On a noisy one a delimiter follows each frame's own (as `play`
+/// and `record` always send): should the line tear the frame, its piece is closed off as one
+/// bad frame of its own instead of running into the next (a heartbeat's, 100 ms later: two
+/// lost for one tear, and the master's 500 ms host timeout within reach). The master takes it
+/// for an empty frame. A quiet line has nothing to flush, and its runs keep their timing to
+/// the bit.
+struct HostTx<W> {
+    line: W,
+    flush: bool,
+}
+
+async fn send(tx: &mut HostTx<impl Write>, log: &RefCell<HostLog>, msg: &HostToMaster) {
     let mut buf = [0u8; serial::MAX_FRAME];
     match serial::encode(msg, &mut buf) {
         Ok(frame) => {
-            if tx.write_all(frame).await.is_ok() {
+            let sent = tx.line.write_all(frame).await.is_ok()
+                && (!tx.flush || tx.line.write_all(&[0]).await.is_ok());
+            if sent {
                 log.borrow_mut().frames_sent += 1;
             }
         }

@@ -267,13 +267,14 @@ pub fn check_options(opts: &Options) -> Result<()> {
         ("--fault-serial-drop", opts.faults.serial.drop),
         ("--fault-serial-duplicate", opts.faults.serial.duplicate),
         ("--fault-serial-delay", opts.faults.serial.delay),
+        ("--fault-serial-torn", opts.faults.serial.torn),
     ] {
         if !(0.0..1.0).contains(&rate) {
             bail!("{name} is a probability per transaction or frame, in [0, 1): got {rate}");
         }
     }
     let f = opts.faults.serial;
-    if f.corrupt + f.drop + f.duplicate + f.delay >= 1.0 {
+    if f.total() >= 1.0 {
         bail!("the --fault-serial-* rates must add up to under 1");
     }
     Ok(())
