@@ -340,6 +340,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             } else {
                 print!("{}", report::summary_text(&run.summary));
             }
+            if let Some(why) = emulator::nothing_scored(&run.summary) {
+                anyhow::bail!("{why}");
+            }
             Ok(())
         }
         Command::Accuracy { json, out, seeds } => cli::analyse::run_accuracy(json, out, seeds),

@@ -404,3 +404,126 @@ fn description_files_that_are_devices_folders_or_huge_are_refused_unread() {
         refused(&args, says, None);
     }
 }
+
+/// What an independent bad-input hunt found (issue 10), each refused now at its place.
+#[test]
+fn a_bad_input_hunts_findings_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let seed001 = repo("robots/seed001.toml");
+
+    // A million empty comment lines (a 2 MB file, or a gzip of a few kB): each kept comment
+    // cost a String whatever its bytes, 50 M of them 1.2 GB.
+    let flood = d.join("flood.csv");
+    let mut text = String::from(STREAM_HEAD);
+    text.push_str(&"#\n".repeat(1_000_001));
+    std::fs::write(&flood, text).unwrap();
+    refused(
+        &[
+            "replay",
+            "--robot",
+            &seed001,
+            "--ticks",
+            flood.to_str().unwrap(),
+        ],
+        "more than 1000000 comment or blank lines",
+        None,
+    );
+
+    // Truth rows only before the ticks: every method scored "0.0000 mm" over no motion.
+    let before = file(
+        d,
+        "before.csv",
+        &format!("{STREAM_HEAD}0,truth,,,0,0,0\n1000,truth,,,0,0,0\n2000,tick,0,1,,,\n3000,tick,0,1,,,\n"),
+    );
+    refused(
+        &["replay", "--robot", &seed001, "--ticks", &before],
+        "no encoder tick between the first truth row and the last",
+        None,
+    );
+
+    // Faults that could never happen, or never be seen, in the run.
+    for (args, says) in [
+        (
+            vec!["emulate", "--fault-slave-reset-at", "12"],
+            "the fault would never happen",
+        ),
+        (
+            vec!["emulate", "--fault-host-silent-after", "1e308"],
+            "--fault-host-silent-after",
+        ),
+        (
+            vec!["emulate", "--fault-slave-reset-at", "0.001"],
+            "a late power-on",
+        ),
+        (
+            vec!["emulate", "--fault-slave-reset-at", "11.99"],
+            "before the end of the run",
+        ),
+        // A run that moves nothing scores nothing: not a perfect 0.00 mm and exit 0.
+        (
+            vec!["emulate", "--fault-slave-off-at", "0"],
+            "nothing scored: the robot did not move",
+        ),
+        (
+            vec!["emulate", "--fault-spi-drop", "0.999999"],
+            "nothing scored",
+        ),
+    ] {
+        refused(&args, says, None);
+    }
+
+    // Scenario keys: the serial rates' sum and a third encoder phase, at their line.
+    let square = std::fs::read_to_string(repo("scenarios/seed002-square.toml")).unwrap();
+    let square = square.replace("../robots/", &format!("{}/", repo("robots")));
+    for (name, extra, says) in [
+        (
+            "sum.toml",
+            "\n[faults]\nserial_drop = 0.6\nserial_corrupt = 0.4\n",
+            "key `faults.serial_*`: the serial fault rates share one draw per frame",
+        ),
+        (
+            "phase.toml",
+            "\n[noise]\nencoder_phase = [0.25, 0.5, 0.75]\n",
+            "key `noise.encoder_phase`: two fractions of a count, one per measuring wheel: got 3",
+        ),
+    ] {
+        let path = file(d, name, &format!("{square}{extra}"));
+        refused(&["emulate", "--scenario", &path], &format!("{name}:"), None);
+        refused(&["emulate", "--scenario", &path], says, None);
+    }
+
+    // The stream written over the robot it is made for.
+    let robot = file(d, "r.toml", &std::fs::read_to_string(&seed001).unwrap());
+    refused(
+        &[
+            "generate",
+            "--robot",
+            &robot,
+            "--trajectory",
+            "twist-arcs",
+            "--out",
+            &robot,
+        ],
+        "is the robot file given with --robot",
+        None,
+    );
+    assert!(std::fs::read_to_string(&robot)
+        .unwrap()
+        .starts_with("format = "));
+
+    // A run that fails leaves none of the folders --out would have made.
+    let out = d.join("runs");
+    refused(
+        &[
+            "emulate",
+            "--fault-host-silent-after",
+            "0",
+            "--out",
+            out.join("a/b").to_str().unwrap(),
+        ],
+        "the host fell silent",
+        None,
+    );
+    assert!(!out.exists(), "a failed run left {}", out.display());
+}

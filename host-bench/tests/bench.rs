@@ -365,6 +365,22 @@ fn a_noisy_serial_line_and_spi_wire_lose_nothing_and_stay_bit_exact() {
     }
 }
 
+/// A reset before a play is history, not this play's: `play` starts the slave's source from a
+/// pose, which tells the master the host knows the pose again. (A bad-input hunt found every
+/// play after a reset failing at once: "the slave reset after 0 of ... updates".)
+#[test]
+fn a_play_after_a_slave_reset_runs_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ticks, robot) = write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.31, 0.77, 0.05]);
+    let mut opts = virtual_board::Options::default();
+    opts.faults.slave_reset_at = Some(0.2);
+    let board = Board::start(opts);
+    std::thread::sleep(std::time::Duration::from_millis(700));
+    let o = play_file(&board, &ticks, &robot, PlayKind::Ticks, Default::default()).unwrap();
+    assert_eq!(o.mismatches, 0, "{:?}", o.first_mismatch);
+    assert_eq!(o.board_updates, o.expected_updates);
+}
+
 #[test]
 fn another_schema_is_refused_and_says_which() {
     let mut opts = virtual_board::Options::default();

@@ -255,8 +255,9 @@ impl Controller {
     /// Queue a command for the slave; refused (and the motors stopped) if the queue is full,
     /// which only a host flooding commands faster than the slave applies them can cause.
     fn queue_for_slave(&mut self, c: SlaveCommand) -> Option<MasterToHost> {
-        if matches!(c, SlaveCommand::SetPose(_)) {
-            // The host knows where the robot is again; the pose is used once applied.
+        if matches!(c, SlaveCommand::SetPose(_) | SlaveCommand::SetSource { .. }) {
+            // The host knows where the robot is again (a source starts from the pose it
+            // carries: `play` and `record` set one); the pose is used once applied.
             self.status &= !status::SLAVE_RESET;
         }
         let was_empty = self.commands.is_empty();

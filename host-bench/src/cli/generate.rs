@@ -83,6 +83,15 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
             "{flag} must be in (0, {max}] Hz, got {v}"
         );
     }
+    // Writing the stream over its own robot file would lose the robot it names.
+    if let (Ok(o), Ok(r)) = (out.canonicalize(), robot_path.canonicalize()) {
+        ensure!(
+            o != r,
+            "--out {} is the robot file given with --robot: the stream would overwrite the robot \
+             it is made for",
+            out.display()
+        );
+    }
     let phase = power_on_phase(&a.phase, a.seed)?;
     let robot = Robot::load(&robot_path)?;
     let named = traj::named(&name).ok_or_else(|| {

@@ -99,5 +99,16 @@ pub fn run_sweep(
             );
         }
     }
+    let idle: Vec<u64> = summaries
+        .iter()
+        .filter(|s| emulator::nothing_scored(s).is_some())
+        .map(|s| s.seed)
+        .collect();
+    anyhow::ensure!(
+        idle.is_empty(),
+        "nothing scored in {} of the {n} runs (seeds {:?}): the robot did not move",
+        idle.len(),
+        idle
+    );
     Ok(())
 }

@@ -414,6 +414,9 @@ fn drive(
         let has_truth = events[i..j]
             .iter()
             .any(|e| matches!(e, Event::Truth { .. }));
+        if ticked && score.last_truth.is_some() {
+            score.ticked_since_truth = true;
+        }
         let due = match (period_ns, next_sample.as_mut()) {
             // A regular sample at this very instant, or a scoring one for a truth row.
             (Some(p), Some(next)) => {
@@ -451,6 +454,10 @@ fn drive(
 #[derive(Default)]
 struct Scorer {
     last_truth: Option<Pose2>,
+    /// A wheel ticked since the last truth row, and a truth row came after a tick that came
+    /// after the first: the scored stretch saw some motion.
+    ticked_since_truth: bool,
+    scored_motion: bool,
     path: f64,
     max: f64,
     last: Option<(Pose2, Pose2)>,
@@ -461,6 +468,7 @@ struct Scorer {
 
 impl Scorer {
     fn add(&mut self, t_ns: u64, estimate: Pose2, truth: Pose2) {
+        self.scored_motion |= std::mem::take(&mut self.ticked_since_truth);
         if let Some(prev) = self.last_truth {
             self.path += prev.distance_to(truth);
         }
@@ -481,6 +489,13 @@ impl Scorer {
         // The first truth row is where the estimators start: alone it scores nothing.
         if self.errors.len() < 2 {
             bail!("the stream has one truth row, the start pose: nothing to score against");
+        }
+        // Truth rows only before the ticks (or all at one end) score no motion at all.
+        if !self.scored_motion {
+            bail!(
+                "no encoder tick between the first truth row and the last: the motion is not \
+                 scored (truth rows must come during the ticks, not only before or after them)"
+            );
         }
         let truth_rows = self.errors.len();
         let errors = &mut self.errors;

@@ -3,7 +3,6 @@
 //! Files are written atomically ([`write_atomically`]), so an interrupted or failed run never
 //! leaves a half-written file behind.
 
-use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -180,14 +179,12 @@ pub fn emulate_into(
     if dir.exists() && !dir.is_dir() {
         anyhow::bail!("--out {}: exists and is not a directory", dir.display());
     }
-    let new_dir = !dir.exists();
-    fs::create_dir_all(dir)
-        .with_context(|| format!("--out {}: cannot create directory", dir.display()))?;
-    let written = write_run_files(scenario, opts, dir);
-    if written.is_err() && new_dir {
-        let _ = fs::remove_dir(dir); // only if empty: never what was there before
-    }
-    written
+    // Made with its parents, and gone again (if empty) should the run fail or be stopped.
+    let out = crate::formats::atomic::OutputDir::create(dir)
+        .with_context(|| format!("--out {}", dir.display()))?;
+    let written = write_run_files(scenario, opts, dir)?;
+    out.keep();
+    Ok(written)
 }
 
 fn write_run_files(
@@ -199,20 +196,40 @@ fn write_run_files(
     let svg_path = dir.join("path.svg");
     let json_path = dir.join("summary.json");
     let mut plotted = Thinned::new(MAX_PLOTTED_ROWS);
+    // The run's own failure (a session the master refused, ...) is reported as itself, not as
+    // a file that could not be written.
+    let mut run_failed = None;
     let summary = write_atomically(&csv_path, |file| {
         let mut w = csv::Writer::from_writer(std::io::BufWriter::new(file));
+        let mut write_failed = false;
         let summary = emulator::run_logged(
             scenario,
             opts,
             Some(&mut |row| {
-                w.serialize(&row)?;
+                let written = w.serialize(&row);
+                write_failed = written.is_err();
+                written?;
                 plotted.push(row);
                 Ok(())
             }),
-        )?;
+        );
+        let summary = match summary {
+            Ok(s) => s,
+            Err(e) if write_failed => return Err(e),
+            Err(e) => {
+                let why = format!("{e:#}");
+                run_failed = Some(e);
+                anyhow::bail!("{why}");
+            }
+        };
         w.flush()?;
         Ok(summary)
-    })?;
+    });
+    let summary = match (summary, run_failed) {
+        (Ok(s), _) => s,
+        (Err(_), Some(run_error)) => return Err(run_error),
+        (Err(e), None) => return Err(e),
+    };
     let run = Run {
         summary,
         log: plotted.rows,

@@ -22,6 +22,66 @@ use anyhow::Context;
 /// The temporary files being written now.
 static PARTIALS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
+/// Output folders made for files still being written, deepest last: a run that fails or is
+/// stopped by a signal removes them again (each only if empty).
+static NEW_DIRS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn new_dirs() -> MutexGuard<'static, Vec<PathBuf>> {
+    NEW_DIRS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn remove_empty_dirs(dirs: &[PathBuf]) {
+    for d in dirs.iter().rev() {
+        let _ = std::fs::remove_dir(d); // fails, as it should, on a folder with files in it
+    }
+}
+
+/// An output folder, made with any missing parents for files about to be written. Dropped
+/// without [`keep`](Self::keep) (the run failed), or on a signal, what it made goes again.
+pub struct OutputDir {
+    made: Vec<PathBuf>,
+}
+
+impl OutputDir {
+    pub fn create(dir: &Path) -> anyhow::Result<Self> {
+        let mut made: Vec<PathBuf> = dir
+            .ancestors()
+            .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+            .map(Path::to_path_buf)
+            .collect();
+        made.reverse();
+        {
+            // Listed before they exist: a signal between the two removes nothing it should not.
+            let mut list = new_dirs();
+            list.extend(made.iter().cloned());
+            if let Err(e) = std::fs::create_dir_all(dir) {
+                remove_empty_dirs(&made);
+                list.retain(|d| !made.contains(d));
+                return Err(e)
+                    .with_context(|| format!("cannot create directory {}", dir.display()));
+            }
+        }
+        Ok(OutputDir { made })
+    }
+
+    /// The run succeeded: the folders stay.
+    pub fn keep(mut self) {
+        let made = std::mem::take(&mut self.made);
+        new_dirs().retain(|d| !made.contains(d));
+    }
+}
+
+impl Drop for OutputDir {
+    fn drop(&mut self) {
+        if self.made.is_empty() {
+            return;
+        }
+        let mut list = new_dirs();
+        remove_empty_dirs(&self.made);
+        list.retain(|d| !self.made.contains(d));
+    }
+}
+
 /// How many [`OwnCtrlC`] guards are alive: while any is, Ctrl-C belongs to them.
 static OWN_CTRL_C: AtomicUsize = AtomicUsize::new(0);
 
@@ -46,6 +106,7 @@ pub fn remove_partials_on_signals() -> anyhow::Result<()> {
             for path in list.iter() {
                 let _ = std::fs::remove_file(path);
             }
+            remove_empty_dirs(&new_dirs());
             std::process::exit(128 + signal);
         }
     });

@@ -91,7 +91,8 @@ struct RawController {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawNoise {
-    encoder_phase: Option<Spanned<[f64; 2]>>,
+    // A list, its length checked here: as `[f64; 2]` a third value was dropped unseen.
+    encoder_phase: Option<Spanned<Vec<f64>>>,
 }
 
 #[derive(Deserialize)]
@@ -276,7 +277,17 @@ impl TomlFile<'_> {
 
         let encoder_phase = match raw.noise.as_ref().and_then(|n| n.encoder_phase.as_ref()) {
             Some(p) => {
-                let v = *p.get_ref();
+                let &[a, b] = p.get_ref().as_slice() else {
+                    return Err(anyhow!(self.at(
+                        p.span(),
+                        "noise.encoder_phase",
+                        format!(
+                            "two fractions of a count, one per measuring wheel: got {} values",
+                            p.get_ref().len()
+                        ),
+                    )));
+                };
+                let v = [a, b];
                 if !v.iter().all(|x| (0.0..1.0).contains(x)) {
                     return Err(anyhow!(self.at(
                         p.span(),
@@ -350,10 +361,23 @@ impl TomlFile<'_> {
                     &mut faults.serial.torn,
                 ),
             ];
+            let mut last_span = None;
             for (v, key, slot) in serial {
                 if let Some(v) = v {
                     *slot = rate(v, key)?;
+                    last_span = Some(v.span());
                 }
+            }
+            if let Some(span) = last_span.filter(|_| faults.serial.total() >= 1.0) {
+                return Err(anyhow!(self.at(
+                    span,
+                    "faults.serial_*",
+                    format!(
+                        "the serial fault rates share one draw per frame and must add up to \
+                         under 1: they add up to {}",
+                        faults.serial.total()
+                    ),
+                )));
             }
         }
 

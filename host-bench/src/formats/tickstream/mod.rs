@@ -69,6 +69,15 @@ pub const MAX_EVENTS: usize = 6_000_000;
 /// gzip of comment lines expands to gigabytes).
 pub const MAX_KEPT_COMMENT_BYTES: usize = 64 * 1024;
 
+/// Comment lines kept from one stream: an empty comment costs its `String` whatever its bytes
+/// (50 M lines of `#` took 1.2 GB when only bytes were counted).
+pub const MAX_KEPT_COMMENTS: usize = 1_000;
+
+/// Lines that are neither the header nor an event (comments, blank rows) one stream may have:
+/// past this it is not a tick stream, and a small gzip of blank lines would otherwise keep
+/// the reader busy for minutes.
+pub const MAX_OTHER_LINES: u64 = 1_000_000;
+
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 const UTF8_BOM: &[u8] = b"\xef\xbb\xbf";
 const READ_BUFFER_BYTES: usize = 64 * 1024;

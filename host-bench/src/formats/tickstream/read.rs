@@ -6,7 +6,8 @@ use std::path::Path;
 use super::row::{parse_header, parse_row, shown, split_fields, Header};
 use super::{
     is_gz_name, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
-    MAX_KEPT_COMMENT_BYTES, MAX_LINE_BYTES, READ_BUFFER_BYTES, UTF8_BOM,
+    MAX_KEPT_COMMENTS, MAX_KEPT_COMMENT_BYTES, MAX_LINE_BYTES, MAX_OTHER_LINES, READ_BUFFER_BYTES,
+    UTF8_BOM,
 };
 use flate2::read::MultiGzDecoder;
 
@@ -88,6 +89,7 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
     let mut last_t: Option<(u64, u64)> = None; // (t_ns, line)
     let mut comment_bytes = 0usize;
     let mut comments_dropped = 0u64;
+    let mut other_lines = 0u64;
 
     loop {
         line.clear();
@@ -137,6 +139,19 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
         }
 
         let trimmed = text.trim_start();
+        let blank_cells = || {
+            trimmed
+                .bytes()
+                .all(|b| b == b',' || b.is_ascii_whitespace())
+        };
+        if trimmed.starts_with('#') || blank_cells() {
+            other_lines += 1;
+            if other_lines > MAX_OTHER_LINES {
+                return Err(p.error(format!(
+                    "more than {MAX_OTHER_LINES} comment or blank lines (is this a tick stream?)"
+                )));
+            }
+        }
         if let Some(comment) = trimmed.strip_prefix('#') {
             // Spreadsheets pad every row to the same number of cells: ignore trailing commas.
             let comment = comment.trim_end_matches(|c: char| c == ',' || c.is_whitespace());
@@ -156,7 +171,9 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
             } else {
                 let comment = comment.strip_prefix(' ').unwrap_or(comment);
                 comment_bytes = comment_bytes.saturating_add(comment.len());
-                if comment_bytes <= MAX_KEPT_COMMENT_BYTES {
+                if comment_bytes <= MAX_KEPT_COMMENT_BYTES
+                    && stream.comments.len() < MAX_KEPT_COMMENTS
+                {
                     stream.comments.push(comment.to_string());
                 } else {
                     comments_dropped += 1;
@@ -217,7 +234,7 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
     if comments_dropped > 0 {
         stream.comments.push(format!(
             "({comments_dropped} more comment lines not kept: a stream keeps at most \
-             {MAX_KEPT_COMMENT_BYTES} bytes of comments)"
+             {MAX_KEPT_COMMENTS} comment lines and {MAX_KEPT_COMMENT_BYTES} bytes of them)"
         ));
     }
     Ok(stream)

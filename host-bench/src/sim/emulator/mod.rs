@@ -18,7 +18,7 @@ pub mod reference;
 mod summary;
 
 pub use fault_check::{fault_check, FaultCheck};
-pub use summary::{LogRow, SlaveResetSeen, Summary};
+pub use summary::{nothing_scored, LogRow, SlaveResetSeen, Summary};
 
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -239,23 +239,61 @@ pub fn run(scenario: &Scenario, opts: &Options) -> Result<Run> {
     Ok(Run { summary, log })
 }
 
+/// A slave reset the master can tell: not before it has exchanged frames with the slave (it
+/// learns the slave's clock from them), and not so late that the reboot and the polls after it
+/// do not fit in the run.
+pub const RESET_SEEN_AFTER_S: f64 = 0.05;
+pub const RESET_SEEN_WITHIN_S: f64 = 0.1;
+
 /// The options' own checks, made before anything runs (or is written).
 pub fn check_options(opts: &Options) -> Result<()> {
     // The work is the simulated time: a week is far past any bench run, and keeps a typo from
     // running for ever.
     if !(opts.duration > 0.0 && opts.duration <= MAX_DURATION_S) {
         bail!(
-            "--duration must be a number of seconds in (0, {MAX_DURATION_S}], got {}",
+            "--duration must be a number of seconds in (0, {MAX_DURATION_S}], got {:?}",
             opts.duration
         );
     }
+    // Each names its flag and its scenario key: the value may come from either.
     for (name, at) in [
-        ("--fault-slave-off-at", opts.faults.slave_off_at),
-        ("--fault-slave-reset-at", opts.faults.slave_reset_at),
-        ("--fault-host-silent-after", opts.faults.host_silent_after),
+        (
+            "--fault-slave-off-at (scenario: faults.slave_off_at_s)",
+            opts.faults.slave_off_at,
+        ),
+        (
+            "--fault-slave-reset-at (scenario: faults.slave_reset_at_s)",
+            opts.faults.slave_reset_at,
+        ),
+        (
+            "--fault-host-silent-after (scenario: faults.host_silent_after_s)",
+            opts.faults.host_silent_after,
+        ),
     ] {
         if let Some(t) = at.filter(|t| !(*t >= 0.0 && t.is_finite())) {
-            bail!("{name} is a simulated time in seconds, >= 0: got {t}");
+            bail!("{name} is a simulated time in seconds, >= 0: got {t:?}");
+        }
+        // A fault after the end would leave a clean run passing for a faulty one.
+        if let Some(t) = at.filter(|t| *t >= opts.duration) {
+            bail!(
+                "{name}: {t:?} s is not within the run (--duration {:?} s): the fault would \
+                 never happen",
+                opts.duration
+            );
+        }
+    }
+    if let Some(t) = opts.faults.slave_reset_at {
+        // The master tells a reset by the slave's clock starting again: it must have learned
+        // that clock first, and have a few polls after the reboot to see it.
+        let (first, last) = (RESET_SEEN_AFTER_S, opts.duration - RESET_SEEN_WITHIN_S);
+        if !(first..=last).contains(&t) {
+            bail!(
+                "--fault-slave-reset-at (scenario: faults.slave_reset_at_s) {t:?} s: a reset \
+                 the master can tell falls between \
+                 {first} s (before, it is a late power-on: the master has not learned the \
+                 slave's clock) and {RESET_SEEN_WITHIN_S} s before the end of the run ({last} s \
+                 here)"
+            );
         }
     }
     for (name, rate) in [

@@ -136,3 +136,21 @@ pub struct SlaveResetSeen {
     /// When, after the reset, the motors first stood (every duty 0).
     pub motors_stopped_s: Option<f64>,
 }
+
+/// Why a run scored nothing, if it did: the robot never moved, so the odometry's error is
+/// measured over no path at all (a slave off from the start, a link that lost every frame, a
+/// goal where the robot already stands). Such a run fails rather than report a perfect 0.
+pub fn nothing_scored(s: &Summary) -> Option<String> {
+    (s.path_length_m < 1e-6).then(|| {
+        format!(
+            "nothing scored: the robot did not move in {} s (path {:.3} mm){}",
+            s.sim_seconds,
+            s.path_length_m * 1e3,
+            if s.spi_frames > 0 && s.spi_frames_rejected == s.spi_frames {
+                "; the master took no frame from the slave"
+            } else {
+                ""
+            }
+        )
+    })
+}
