@@ -105,6 +105,28 @@ fn play_prints_the_verdict_as_json_and_a_wrong_robot_is_refused() {
     assert_eq!(v["mismatches"], 0);
     assert!(v["board_updates"].as_u64().unwrap() > 100);
 
+    // A fault on a frame the play never sends injects nothing: the run is refused, not passed.
+    let out = Command::new(BIN)
+        .args([
+            "play",
+            "--port",
+            &board.port,
+            "--sensor",
+            "counts",
+            "--fault-drop-frames",
+            "99999999999999",
+        ])
+        .arg("--ticks")
+        .arg(&ticks)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--fault-drop-frames 99999999999999: this play sent"),
+        "{err}"
+    );
+
     // The wrong robot for a stream (a triangle's ticks, a two-wheel robot): refused, and the
     // error names the row.
     let omni = dir.path().join("omni.csv");

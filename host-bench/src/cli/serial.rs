@@ -114,6 +114,21 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
         },
     )?;
     bar.finish_and_clear();
+    // A fault asked for a frame the play never sent was never injected: the run proves
+    // nothing about it.
+    let sent = link.stats.events_frames;
+    for (flag, ks) in [
+        ("--fault-corrupt-frames", &a.fault_corrupt_frames),
+        ("--fault-drop-frames", &a.fault_drop_frames),
+    ] {
+        if let Some(k) = ks.iter().find(|&&k| k >= sent) {
+            bail!(
+                "{flag} {k}: this play sent {sent} Events frames (0 to {}), so frame {k} was \
+                 never sent and nothing was injected",
+                sent.saturating_sub(1)
+            );
+        }
+    }
     if a.json {
         println!("{}", serde_json::to_string(&outcome)?);
     } else {
@@ -345,7 +360,10 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     let (layout, robot_name) = match &a.robot {
         Some(path) => {
             let robot = host_bench::formats::robot::Robot::load(path)?;
-            (robot.odometry_layout()?, robot.name)
+            let layout = robot
+                .odometry_layout()
+                .with_context(|| format!("--robot {}", path.display()))?;
+            (layout, robot.name)
         }
         None => (
             robot_math::odometry::Layout::SEED_004,
