@@ -512,6 +512,29 @@ fn a_bad_input_hunts_findings_are_refused() {
         .unwrap()
         .starts_with("format = "));
 
+    // A name that would print an escape sequence to the terminal, refused at its key.
+    let seed001_text = std::fs::read_to_string(&seed001).unwrap();
+    let escaped = file(
+        d,
+        "escaped.toml",
+        &seed001_text.replacen(r#"name = "seed001""#, r#"name = "seed\u001b[31m""#, 1),
+    );
+    let ticks_out = d.join("escaped.csv");
+    refused(
+        &[
+            "generate",
+            "--robot",
+            &escaped,
+            "--trajectory",
+            "twist-arcs",
+            "--out",
+            ticks_out.to_str().unwrap(),
+        ],
+        "escaped.toml:2:8: key `name`: must not hold control characters",
+        None,
+    );
+    assert!(!ticks_out.exists());
+
     // A run that fails leaves none of the folders --out would have made.
     let out = d.join("runs");
     refused(

@@ -173,6 +173,18 @@ impl TomlFile<'_> {
         if s.is_empty() {
             return Err(self.at(v.span(), key, "must not be empty"));
         }
+        // Names are printed to terminals and written into files' headers: an escape sequence
+        // or a line break in one would rewrite what the user sees or split a header line.
+        if let Some(c) = s.chars().find(|c| c.is_control()) {
+            return Err(self.at(
+                v.span(),
+                key,
+                format!(
+                    "must not hold control characters (found U+{:04X})",
+                    c as u32
+                ),
+            ));
+        }
         Ok(s.to_string())
     }
 
