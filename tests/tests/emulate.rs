@@ -232,6 +232,14 @@ fn a_noisy_serial_line_to_the_host_still_gets_the_robot_there() {
             "{s:?}"
         );
         rejected += s.serial_frames_rejected;
+        // Every refusal by why, as copies of the two decoders saw them: they add up to what
+        // the master and the host counted.
+        let (km, kh) = (s.serial_rejected_kinds_master, s.serial_rejected_kinds_host);
+        assert_eq!(
+            km.total() + kh.total(),
+            s.serial_frames_rejected,
+            "{km:?} {kh:?}"
+        );
     }
     assert!(rejected > 0, "spoilt frames are caught and counted");
     let path = concat!(

@@ -8,9 +8,47 @@
 //! run can be repeated. A frame's bytes are held until its end arrives,
 //! so a noisy line adds at most one frame of latency; a quiet one passes bytes straight on.
 
+use protocol::serial::{FrameDecoder, FrameError, HostToMaster, MasterToHost};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
+
+/// The frames the receiving end's decoder refuses, by why (`protocol::serial::FrameError`),
+/// as a copy of that decoder at the end of the line sees them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct SerialRejections {
+    pub overflow: u64,
+    pub cobs: u64,
+    pub short: u64,
+    pub crc: u64,
+    pub decode: u64,
+    pub non_canonical: u64,
+}
+
+impl SerialRejections {
+    fn count(&mut self, e: FrameError) {
+        let n = match e {
+            FrameError::Overflow => &mut self.overflow,
+            FrameError::Cobs => &mut self.cobs,
+            FrameError::Short => &mut self.short,
+            FrameError::Crc => &mut self.crc,
+            FrameError::Decode => &mut self.decode,
+            FrameError::NonCanonical => &mut self.non_canonical,
+        };
+        *n += 1;
+    }
+
+    pub fn total(&self) -> u64 {
+        self.overflow + self.cobs + self.short + self.crc + self.decode + self.non_canonical
+    }
+}
+
+/// Which end the line runs to: what its frames decode as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Receiver {
+    Master,
+    Host,
+}
 
 /// What the noise did to the frames.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -46,16 +84,36 @@ pub struct SerialNoise {
     /// A frame held back, to go out after the next one.
     held: Option<Vec<u8>>,
     pub injected: SerialInjected,
+    /// The receiver's decoder, copied, and what it refused.
+    receiver: (Receiver, FrameDecoder),
+    pub rejected: SerialRejections,
 }
 
 impl SerialNoise {
-    pub fn new(faults: SerialFaults, seed: u64) -> Self {
+    pub fn new(faults: SerialFaults, seed: u64, receiver: Receiver) -> Self {
         SerialNoise {
             faults,
             rng: ChaCha8Rng::seed_from_u64(seed),
             frame: Vec::new(),
             held: None,
             injected: SerialInjected::default(),
+            receiver: (receiver, FrameDecoder::new()),
+            rejected: SerialRejections::default(),
+        }
+    }
+
+    /// What the receiver's decoder makes of `out`: each refusal counted by why. (Only on a
+    /// noisy line: a quiet one passes the senders' own frames, which always decode.)
+    fn tally(&mut self, out: &[u8]) {
+        let (receiver, decoder) = &mut self.receiver;
+        for &b in out {
+            let refused = match receiver {
+                Receiver::Master => decoder.push::<HostToMaster>(b).and_then(Result::err),
+                Receiver::Host => decoder.push::<MasterToHost>(b).and_then(Result::err),
+            };
+            if let Some(e) = refused {
+                self.rejected.count(e);
+            }
         }
     }
 
@@ -115,6 +173,7 @@ impl SerialNoise {
                 out.extend_from_slice(&held);
             }
         }
+        self.tally(&out);
         out
     }
 }
@@ -129,7 +188,7 @@ mod tests {
 
     #[test]
     fn a_quiet_line_passes_every_byte_at_once() {
-        let mut line = SerialNoise::new(SerialFaults::default(), 1);
+        let mut line = SerialNoise::new(SerialFaults::default(), 1, Receiver::Master);
         assert_eq!(line.pass(&[5, 6]), [5, 6]);
     }
 
@@ -141,7 +200,7 @@ mod tests {
             drop: 0.05,
             ..Default::default()
         };
-        let mut line = SerialNoise::new(faults, 7);
+        let mut line = SerialNoise::new(faults, 7, Receiver::Master);
         // In pieces that cut frames anywhere: a frame is judged once it is complete.
         let mut out = Vec::new();
         for piece in input.chunks(5) {
@@ -163,7 +222,7 @@ mod tests {
             torn: 0.05,
             ..Default::default()
         };
-        let mut line = SerialNoise::new(faults, 5);
+        let mut line = SerialNoise::new(faults, 5, Receiver::Master);
         let out = line.pass(&input);
         let i = line.injected;
         assert!((60..140).contains(&i.torn), "{i:?}");
@@ -183,7 +242,7 @@ mod tests {
             delay: 0.05,
             ..Default::default()
         };
-        let mut line = SerialNoise::new(faults, 3);
+        let mut line = SerialNoise::new(faults, 3, Receiver::Master);
         let out = line.pass(&input);
         let i = line.injected;
         assert!(i.duplicated > 2 && i.delayed > 2, "{i:?}");

@@ -40,7 +40,7 @@ use virtual_time::Simulation;
 
 use super::emulator::hw::*;
 use super::plant::{MeasuringSensors, Plant, PlantConfig};
-use super::serial_noise::{SerialFaults, SerialNoise};
+use super::serial_noise::{Receiver, SerialFaults, SerialNoise};
 use robot_math::motor::DcMotor;
 
 /// Fault knobs of the virtual board (for tests of the host's checks and of the links).
@@ -255,8 +255,8 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     let master_shared = MasterShared::new();
     let wire = Rc::new(RefCell::new(SpiWire::new(opts.faults.spi, opts.seed)));
     let f = &opts.faults;
-    let mut noise_to_master = SerialNoise::new(f.serial, opts.seed ^ 0x5e1a);
-    let mut noise_to_host = SerialNoise::new(f.serial, opts.seed ^ 0x5e1b);
+    let mut noise_to_master = SerialNoise::new(f.serial, opts.seed ^ 0x5e1a, Receiver::Master);
+    let mut noise_to_host = SerialNoise::new(f.serial, opts.seed ^ 0x5e1b, Receiver::Host);
     let to_master: SharedLine = Rc::default();
     let to_host: SharedLine = Rc::default();
     let byte_time = byte_time(opts.master.baud);

@@ -38,7 +38,7 @@ use serde::Serialize;
 use virtual_time::Simulation;
 
 use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
-use crate::sim::serial_noise::{SerialFaults, SerialNoise};
+use crate::sim::serial_noise::{Receiver, SerialFaults, SerialNoise};
 use hw::*;
 use robot_math::motor::DcMotor;
 
@@ -373,15 +373,19 @@ pub fn run_logged(
 
     // Serial noise each way, from streams of their own (a clean run draws nothing).
     let noisy = opts.faults.serial != SerialFaults::default();
-    let noise = |salt: u64| {
+    let noise = |salt: u64, to: Receiver| {
         noisy.then(|| {
             Rc::new(RefCell::new(SerialNoise::new(
                 opts.faults.serial,
                 opts.seed ^ salt,
+                to,
             )))
         })
     };
-    let (noise_to_master, noise_to_host) = (noise(0x5e1a), noise(0x5e1b));
+    let (noise_to_master, noise_to_host) = (
+        noise(0x5e1a, Receiver::Master),
+        noise(0x5e1b, Receiver::Host),
+    );
     let slave_off = opts.faults.slave_off_at.map(secs_to_instant);
     let slave_reset = opts.faults.slave_reset_at.map(secs_to_instant);
     let mut sim = Simulation::new()?;
@@ -614,6 +618,12 @@ pub fn run_logged(
         serial_injected_to_host: noise_to_host
             .as_ref()
             .map_or_else(Default::default, |n| n.borrow().injected),
+        serial_rejected_kinds_master: noise_to_master
+            .as_ref()
+            .map_or_else(Default::default, |n| n.borrow().rejected),
+        serial_rejected_kinds_host: noise_to_host
+            .as_ref()
+            .map_or_else(Default::default, |n| n.borrow().rejected),
         master_view_of_slave_m: master_view.map(|f| {
             let (x, y) = protocol::Point {
                 x_um: f.pose.x_um,

@@ -95,6 +95,10 @@ pub struct Summary {
     /// What the serial fault knobs did to the frames each way (all zero on a quiet line).
     pub serial_injected_to_master: crate::sim::serial_noise::SerialInjected,
     pub serial_injected_to_host: crate::sim::serial_noise::SerialInjected,
+    /// The serial frames each end refused, by why, as a copy of its decoder at the end of the
+    /// line saw them (they add up to what the master and the host counted themselves).
+    pub serial_rejected_kinds_master: crate::sim::serial_noise::SerialRejections,
+    pub serial_rejected_kinds_host: crate::sim::serial_noise::SerialRejections,
     /// On a noisy line, how often the host sent the drive geometry before the master's frame
     /// counters showed it taken (null on a quiet line: sent once).
     pub serial_drive_sends: Option<u32>,
