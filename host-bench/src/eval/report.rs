@@ -213,7 +213,7 @@ fn write_run_files(
             scenario,
             opts,
             Some(&mut |row| {
-                if row_index % every == 0 {
+                if row_index.is_multiple_of(every) {
                     let written = w.serialize(&row);
                     write_failed = written.is_err();
                     written?;
