@@ -535,6 +535,53 @@ fn a_bad_input_hunts_findings_are_refused() {
     );
     assert!(!ticks_out.exists());
 
+    // An output path that is a FIFO (or a device: as root, `record --out /dev/null` replaced
+    // /dev/null with a file) is refused, and left as it was.
+    let fifo = d.join("out.fifo");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    refused(
+        &[
+            "generate",
+            "--robot",
+            &seed001,
+            "--trajectory",
+            "twist-arcs",
+            "--out",
+            fifo.to_str().unwrap(),
+        ],
+        "it exists and is not a regular file",
+        None,
+    );
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+
+    // Seed 001's `lut` holds 42.9 m: a run 1 km from the origin is refused for it, not scored
+    // as 988 m of error.
+    let far = file(
+        d,
+        "far-lut.csv",
+        &format!(
+            "{STREAM_HEAD}0,truth,,,1000,0,0\n1000,tick,0,1,,,\n1000,tick,1,1,,,\n2000,truth,,,1000.0001,0,0\n"
+        ),
+    );
+    refused(
+        &[
+            "replay",
+            "--robot",
+            &seed001,
+            "--ticks",
+            &far,
+            "--algorithm",
+            "lut",
+        ],
+        "seed 001's `lut` keeps positions in 32-bit units of 10 nm",
+        None,
+    );
+
     // A run that fails leaves none of the folders --out would have made.
     let out = d.join("runs");
     refused(

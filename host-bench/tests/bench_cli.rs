@@ -105,6 +105,30 @@ fn play_prints_the_verdict_as_json_and_a_wrong_robot_is_refused() {
     assert_eq!(v["mismatches"], 0);
     assert!(v["board_updates"].as_u64().unwrap() > 100);
 
+    // A stream without a tick row gives the board nothing to compute: refused, not "0 of 0
+    // updates bit-exact" and exit 0.
+    let no_ticks = dir.path().join("no-ticks.csv");
+    std::fs::write(
+        &no_ticks,
+        "# omnibench tick stream v1\nt_ns,kind,id,value,x_m,y_m,theta_rad\n0,truth,,,0,0,0\n1000000,truth,,,0.05,0,0\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args([
+            "play",
+            "--port",
+            &board.port,
+            "--robot",
+            &data("seed001.toml"),
+        ])
+        .arg("--ticks")
+        .arg(&no_ticks)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("no tick rows"), "{err}");
+
     // A fault on a frame the play never sends injects nothing: the run is refused, not passed.
     let out = Command::new(BIN)
         .args([

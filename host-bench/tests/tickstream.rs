@@ -496,19 +496,22 @@ fn write_refuses_an_invalid_stream_and_leaves_nothing() {
 #[test]
 fn failed_write_leaves_no_partial_file() {
     let dir = scratch("write_fails");
-    // The target is an existing directory: writing the temporary file works, the rename fails.
+    // The target is an existing directory: refused before anything is written.
     let target = dir.join("ticks.csv");
     fs::create_dir(&target).unwrap();
     fs::write(target.join("keep"), "x").unwrap();
     let e = tickstream::write(&target, &sample()).unwrap_err();
-    assert!(format!("{e:#}").contains("cannot rename"), "{e:#}");
+    assert!(
+        format!("{e:#}").contains("it exists and is not a regular file (a folder)"),
+        "{e:#}"
+    );
     assert_eq!(entries(&dir), ["ticks.csv"], "a temporary file was left");
     assert_eq!(entries(&target), ["keep"]);
     // A directory that does not exist: nothing can be created, and the error says where.
     let e = tickstream::write(&dir.join("no/such/dir.csv"), &sample()).unwrap_err();
     let chain = format!("{e:#}");
     assert!(chain.contains("no/such/dir.csv"), "{chain}");
-    assert!(chain.contains("temporary file in"), "{chain}");
+    assert!(chain.contains("does not exist"), "{chain}");
 }
 
 /// The names in `dir`, sorted.

@@ -98,6 +98,15 @@ pub fn plan(request: &FlashRequest, lister: &Lister) -> Result<Vec<FlashJob>, St
         .iter()
         .map(|&b| (b, request.probe_spec(b)))
         .collect();
+    // One probe named for both boards is a mistake the probes need not be asked about.
+    if let [(_, Some(a)), (_, Some(b))] = wanted.as_slice() {
+        if a == b {
+            problems.push(format!(
+                "the slave and the master are both given probe {a}: each board needs its own \
+                 (--slave-probe, --master-probe, or [slave] and [master] probe in bench.toml)"
+            ));
+        }
+    }
     let attached = lister.list_all_with_access();
     let probes = match assign(&wanted, &attached) {
         Ok(p) => p,

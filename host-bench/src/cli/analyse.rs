@@ -2,6 +2,8 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
+
 /// Most power-on seeds per accuracy case (each case replays every method once per seed).
 pub const MAX_ACCURACY_SEEDS: u64 = 1000;
 
@@ -88,6 +90,20 @@ pub fn run_replay(
     // mode (e.g. `timing` on sampled counts) are skipped with the reason.
     let mut scores = Vec::new();
     let mut skipped = Vec::new();
+    // Every track's place checked before the first is written (a folder in the way of the
+    // third left the first two behind); a folder made for them goes again if the run fails.
+    let made = match &out {
+        Some(dir) => {
+            let made = host_bench::formats::atomic::OutputDir::create(dir)
+                .with_context(|| format!("--out {}", dir.display()))?;
+            for name in &names {
+                host_bench::formats::atomic::check_output(&dir.join(format!("{name}.csv")))
+                    .with_context(|| format!("--out {}", dir.display()))?;
+            }
+            Some(made)
+        }
+        None => None,
+    };
     for name in &names {
         let run = if out.is_some() {
             replay::replay
@@ -99,8 +115,6 @@ pub fn run_replay(
                 // Each track is written (with --out) and let go at once: four of them for a
                 // long stream would be most of the memory.
                 if let Some(dir) = &out {
-                    std::fs::create_dir_all(dir)
-                        .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
                     s.write_track(&dir.join(format!("{}.csv", s.name)))?;
                 }
                 s.track = Vec::new();
@@ -173,6 +187,9 @@ pub fn run_replay(
                 b.file
             );
         }
+    }
+    if let Some(made) = made {
+        made.keep();
     }
     Ok(())
 }

@@ -183,17 +183,36 @@ impl Estimator for ExactF64 {
 }
 
 /// Origin of seed 001's unsigned coordinate square (in its 10^-8 m units) that keeps the
-/// stream's truth rows, with a 1 m margin, inside the representable range.
-fn lut_origin(stream: &TickStream) -> (u32, u32) {
-    let (mut min_x, mut min_y) = (0.0f64, 0.0f64);
+/// stream's truth rows, with a 1 m margin, inside the representable range. `lut` tracks a
+/// wheel, not the reference point: the margin grows by the robot's reach (a wheel 1 m off
+/// the centre wrapped to 42.9 m at the first step). Refused when the run does not fit the
+/// square at all.
+fn lut_origin(stream: &TickStream, robot: &Robot) -> Result<(u32, u32)> {
+    let reach = robot
+        .encoders
+        .iter()
+        .map(|e| e.wheel.x.hypot(e.wheel.y))
+        .fold(0.0f64, f64::max)
+        + robot.carriage.as_ref().map_or(0.0, |c| c.trail_m.abs());
+    let margin = 1.0 + reach;
+    let (mut lo, mut hi) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));
     for e in &stream.events {
         if let Event::Truth { x_m, y_m, .. } = *e {
-            min_x = min_x.min(x_m);
-            min_y = min_y.min(y_m);
+            lo = (lo.0.min(x_m), lo.1.min(y_m));
+            hi = (hi.0.max(x_m), hi.1.max(y_m));
         }
     }
-    let lsb = |m: f64| ((1.0 - m) * 1e8).clamp(0.0, u32::MAX as f64) as u32;
-    (lsb(min_x), lsb(min_y))
+    let span = (hi.0 - lo.0).max(hi.1 - lo.1) + 2.0 * margin;
+    let square = u32::MAX as f64 * 1e-8;
+    if span > square {
+        bail!(
+            "seed 001's `lut` keeps positions in 32-bit units of 10 nm, a {square:.1} m square; \
+             this run needs {span:.1} m (its truth's extent, plus {margin:.1} m either side for \
+             the robot's reach)"
+        );
+    }
+    let lsb = |m: f64| ((margin - m) * 1e8).clamp(0.0, u32::MAX as f64) as u32;
+    Ok((lsb(lo.0), lsb(lo.1)))
 }
 
 /// Run `algorithm` over `stream` for `robot`, seeing the encoders as `mode` says.
@@ -305,7 +324,11 @@ fn estimator(
         .map_err(|e| anyhow::anyhow!("robot {}: {e}", robot.name))?;
         // Seed 001 keeps coordinates unsigned (about 42.9 m of range at 10^-8 m): like the
         // paper, put the field origin so the whole run stays positive, 1 m inside the square.
-        Box::new(odo.with_lut_origin(lut_origin(stream)))
+        if method == Method::Lut {
+            Box::new(odo.with_lut_origin(lut_origin(stream, robot)?))
+        } else {
+            Box::new(odo)
+        }
     };
     Ok((estimator, n))
 }

@@ -130,6 +130,42 @@ impl Drop for OwnCtrlC {
     }
 }
 
+/// Checks that `path` can take an output file: it is a regular file (replaced) or nothing yet,
+/// in a folder that exists. The rename would otherwise put a file where a device, a FIFO or a
+/// folder was (`record --out /dev/null`, as root, replaced /dev/null). Callers that write
+/// several files, or work a long time first, call it on each before they start.
+pub fn check_output(path: &Path) -> anyhow::Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_file() => {}
+        Ok(m) => anyhow::bail!(
+            "cannot write {}: it exists and is not a regular file (a {}); name a new file or a \
+             regular one to replace",
+            path.display(),
+            if m.is_dir() {
+                "folder"
+            } else if m.file_type().is_symlink() {
+                "symbolic link"
+            } else {
+                "device, FIFO or socket"
+            }
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => anyhow::bail!("cannot write {}: {e}", path.display()),
+    }
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !folder.is_dir() {
+        anyhow::bail!(
+            "cannot write {}: its folder {} does not exist",
+            path.display(),
+            folder.display()
+        );
+    }
+    Ok(())
+}
+
 /// Takes a temporary file off the list when the write is over, whichever way it ended.
 struct Listed(Option<PathBuf>);
 
@@ -150,6 +186,7 @@ pub fn write_atomically<T>(
     path: &Path,
     write: impl FnOnce(&mut File) -> anyhow::Result<T>,
 ) -> anyhow::Result<T> {
+    check_output(path)?;
     let folder = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -270,7 +307,10 @@ mod tests {
         let err = write_atomically(&path, |_| Ok(())).unwrap_err();
         let chain = format!("{err:#}");
         assert!(chain.contains("no/such/out.csv"), "{chain}");
-        assert!(chain.contains("temporary file in"), "{chain}");
+        assert!(
+            chain.contains("its folder") && chain.contains("does not exist"),
+            "{chain}"
+        );
     }
 
     #[cfg(unix)]

@@ -48,7 +48,16 @@ pub fn expected_reports(
     start: FixedPose,
 ) -> Result<Vec<Report>> {
     let mut engine = PlayedSensors::new(layout, method, stream.kind, stream.period_us, start)
-        .map_err(|e| anyhow::anyhow!("`{}` cannot run on this robot: {e:?}", method.name()))?;
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "--algorithm {} with --sensor {}: {e}",
+                method.name(),
+                match stream.kind {
+                    firmware_slave::played::PlayKind::Ticks => "timestamps",
+                    firmware_slave::played::PlayKind::Counts => "counts",
+                }
+            )
+        })?;
     let mut sink = ListSink(Vec::new());
     let used = engine.feed(&stream.bytes, &mut sink);
     if used != stream.bytes.len() || engine.failed() {
@@ -112,6 +121,16 @@ fn wire_pose(p: Pose2) -> protocol::Pose {
 
 /// Play `req` to the boards on `link`.
 pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
+    // Without a tick the board computes nothing to compare: "0 of 0 updates bit-exact" is no
+    // result (replay refuses such a stream too).
+    if !req
+        .stream
+        .events
+        .iter()
+        .any(|e| matches!(e, crate::formats::tickstream::Event::Tick { .. }))
+    {
+        bail!("the stream has no tick rows: nothing to play, nothing scored");
+    }
     let info = session::hello(link)?;
     let layout = req.layout;
     let stream = super::played_stream::encode(

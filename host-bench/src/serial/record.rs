@@ -69,13 +69,54 @@ struct Collected {
     has_abs: bool,
 }
 
+/// The files written beside a recording `out`: `STEM.robot.toml` and `STEM.board.csv`.
+fn companion_files(out: &Path) -> (PathBuf, PathBuf) {
+    let stem = out
+        .file_name()
+        .and_then(|n| n.to_str())
+        .map(|n| {
+            n.trim_end_matches(".gz")
+                .trim_end_matches(".csv")
+                .to_string()
+        })
+        .unwrap_or_else(|| "recording".into());
+    let dir = out.parent().unwrap_or(Path::new(""));
+    (
+        dir.join(format!("{stem}.robot.toml")),
+        dir.join(format!("{stem}.board.csv")),
+    )
+}
+
 pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
+    // Where it all goes, checked before a second is recorded: a recording that cannot be
+    // written at the end is a recording lost.
+    let (robot_out, board_out) = companion_files(req.out);
+    for path in [req.out, robot_out.as_path(), board_out.as_path()] {
+        crate::formats::atomic::check_output(path).context("--out")?;
+    }
     let info = session::hello(link)?;
     // The robot: the one given (loaded into the slave), or the slave's power-on seed 004.
     let (robot_text, robot_name, has_abs) = match req.robot {
         Some(p) => {
             let robot = crate::formats::robot::Robot::load(p)?;
             let layout = robot.odometry_layout()?;
+            // What the slave board has pins for: its timers' two quadrature inputs and eight
+            // absolute-encoder lines.
+            let abs_bits = layout.abs().map_or(0, |a| a.bits);
+            if layout.encoders() != 2 || abs_bits > 8 {
+                bail!(
+                    "--robot {}: the slave board reads 2 quadrature encoders and an absolute \
+                     encoder of at most 8 bits; this robot has {} encoders{} (play its streams \
+                     instead: play feeds any layout)",
+                    p.display(),
+                    layout.encoders(),
+                    if abs_bits > 8 {
+                        format!(" and a {abs_bits}-bit absolute encoder")
+                    } else {
+                        String::new()
+                    }
+                );
+            }
             session::load_robot(link, &layout)?;
             (
                 crate::formats::toml_file::read_bounded_text(p)
@@ -339,18 +380,11 @@ fn write(
         }
     }
     let out = req.out;
-    let stem = out
-        .file_name()
-        .and_then(|n| n.to_str())
-        .map(|n| {
-            n.trim_end_matches(".gz")
-                .trim_end_matches(".csv")
-                .to_string()
-        })
-        .unwrap_or_else(|| "recording".into());
+    let (robot_path, board_file) = companion_files(out);
     let dir = out.parent().unwrap_or(Path::new(""));
-    let robot_file = format!("{stem}.robot.toml");
-    let board_file = dir.join(format!("{stem}.board.csv"));
+    let robot_file = robot_path
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let mut comments = vec![
         format!("recorded by host-bench record from robot {robot_name} ({stopped_by} after {seconds:.3} s)"),
         if req.counts {
