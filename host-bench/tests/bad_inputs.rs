@@ -559,6 +559,24 @@ fn a_bad_input_hunts_findings_are_refused() {
     use std::os::unix::fs::FileTypeExt;
     assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
 
+    // Output names that would hide what is in the file.
+    refused(
+        &["envelope", "--out", d.join("e.png").to_str().unwrap()],
+        "drawn as SVG",
+        None,
+    );
+    refused(
+        &[
+            "record",
+            "--port",
+            "/dev/null",
+            "--out",
+            d.join("r.txt").to_str().unwrap(),
+        ],
+        "a tick stream is written as .csv",
+        None,
+    );
+
     // Seed 001's `lut` holds 42.9 m: a run 1 km from the origin is refused for it, not scored
     // as 988 m of error.
     let far = file(

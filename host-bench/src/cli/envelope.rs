@@ -15,6 +15,16 @@ pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
     let protocol::serial::DriveKind::Omni3 { d_um } = geometry.kind else {
         anyhow::bail!("the master's power-on drive is not seed 003's three omni wheels");
     };
+    // The picture is SVG: a name that says otherwise would mislead whatever opens it.
+    if let Some(path) = out
+        .as_ref()
+        .filter(|p| p.extension().is_none_or(|e| e != "svg"))
+    {
+        anyhow::bail!(
+            "--out {}: the envelope is drawn as SVG; name a .svg file",
+            path.display()
+        );
+    }
     let e = envelope::run(d_um as f64 * 1e-6, geometry.v_max_um_s as f64 * 1e-6)?;
     if let Some(path) = &out {
         write_svg(&e, path)?;

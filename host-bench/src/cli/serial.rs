@@ -210,6 +210,14 @@ pub struct RecordArgs {
 }
 
 pub fn run_record(a: RecordArgs) -> Result<()> {
+    // The stream is CSV, gzipped by a .gz name: another name would hide what it is.
+    let name = a.out.file_name().map(|n| n.to_string_lossy().into_owned());
+    if !name.is_some_and(|n| n.ends_with(".csv") || n.ends_with(".csv.gz")) {
+        bail!(
+            "--out {}: a tick stream is written as .csv, or .csv.gz to compress it",
+            a.out.display()
+        );
+    }
     if let Some(d) = a.duration {
         // A recording also stops at the stream's size limit (docs/limits.md).
         if !(d > 0.0 && d <= 604_800.0) {
