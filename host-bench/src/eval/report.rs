@@ -76,11 +76,7 @@ pub fn summary_text(s: &Summary) -> String {
                     String::new()
                 };
                 if i.duplicated > 0 {
-                    torn += &format!(
-                        ", {} sent twice by a slave late to re-arm ({} of them frames the \
-                         master already had)",
-                        i.duplicated, s.spi_rejected_kinds_master.repeated
-                    );
+                    torn += &format!(", {} sent twice by a slave late to re-arm", i.duplicated);
                 }
                 let (m, sl) = (&s.spi_rejected_kinds_master, &s.spi_rejected_kinds_slave);
                 let rep = if m.repeated > 0 {

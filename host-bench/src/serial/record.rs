@@ -100,23 +100,8 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         Some(p) => {
             let robot = crate::formats::robot::Robot::load(p)?;
             let layout = robot.odometry_layout()?;
-            // What the slave board has pins for: its timers' two quadrature inputs and eight
-            // absolute-encoder lines.
-            let abs_bits = layout.abs().map_or(0, |a| a.bits);
-            if layout.encoders() != 2 || abs_bits > 8 {
-                bail!(
-                    "--robot {}: the slave board reads 2 quadrature encoders and an absolute \
-                     encoder of at most 8 bits; this robot has {} encoders{} (play its streams \
-                     instead: play feeds any layout)",
-                    p.display(),
-                    layout.encoders(),
-                    if abs_bits > 8 {
-                        format!(" and a {abs_bits}-bit absolute encoder")
-                    } else {
-                        String::new()
-                    }
-                );
-            }
+            crate::sim::plant::slave_board_reads(&layout)
+                .map_err(|e| anyhow::anyhow!("--robot {}: {e}", p.display()))?;
             session::load_robot(link, &layout)?;
             (
                 crate::formats::toml_file::read_bounded_text(p)

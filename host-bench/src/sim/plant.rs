@@ -34,6 +34,27 @@ pub enum MeasuringSensors {
     },
 }
 
+/// Whether the slave board has inputs for a robot's sensors: its timers' two quadrature
+/// inputs and eight absolute-encoder lines (what `record` and the virtual board need; `play`
+/// feeds any layout).
+pub fn slave_board_reads(layout: &Layout) -> Result<(), String> {
+    if layout.encoders() != 2 {
+        return Err(format!(
+            "the slave board reads 2 quadrature encoders, this robot has {} (play its streams \
+             instead: play feeds any layout)",
+            layout.encoders()
+        ));
+    }
+    if let Some(abs) = layout.abs().filter(|a| a.bits > 8) {
+        return Err(format!(
+            "the slave board has 8 absolute-encoder pins, the robot's absolute encoder has {} \
+             bits",
+            abs.bits
+        ));
+    }
+    Ok(())
+}
+
 impl MeasuringSensors {
     /// Seed 004's carriage and its E6CP-AG5C.
     pub const SEED_004: MeasuringSensors = MeasuringSensors::Carriage {
@@ -44,13 +65,7 @@ impl MeasuringSensors {
     /// The sensors a robot's odometry layout describes, if the slave board can read them: two
     /// quadrature encoders, and an absolute encoder of at most 8 bits (its 8 input pins).
     pub fn from_layout(layout: &Layout) -> Result<Self, String> {
-        if layout.encoders() != 2 {
-            return Err(format!(
-                "the slave board reads 2 quadrature encoders, this robot has {} (play its \
-                 streams instead: play feeds any layout)",
-                layout.encoders()
-            ));
-        }
+        slave_board_reads(layout)?;
         let [w0, w1, ..] = *layout.wheels();
         let [k0, k1, ..] = *layout.metres_per_count();
         match (layout.carriage_geometry(), layout.abs()) {
@@ -62,12 +77,6 @@ impl MeasuringSensors {
                                 through the carriage origin, rolling along +x"
                             .into(),
                     );
-                }
-                if abs.bits > 8 {
-                    return Err(format!(
-                        "the slave board has 8 absolute-encoder pins, the swivel encoder has {} bits",
-                        abs.bits
-                    ));
                 }
                 Ok(MeasuringSensors::Carriage { geometry, abs })
             }
