@@ -8,6 +8,8 @@ use host_bench::formats::robot::Robot;
 use host_bench::formats::tickstream;
 use host_bench::sim::emulator::{self, Options, Scenario, MAX_DURATION_S};
 use libfuzzer_sys::fuzz_target;
+// The allocation bounds (src/lib.rs): linked only when named.
+use omnibench_fuzz as _;
 use std::path::Path;
 use std::sync::OnceLock;
 

@@ -4,6 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+// The allocation bounds (src/lib.rs): linked only when named.
+use omnibench_fuzz as _;
 use protocol::events::{
     encode_sample, EventDecoder, EventEncoder, SampleDecoder, MAX_EVENT_LEN, MAX_SAMPLE_LEN,
 };

@@ -2,6 +2,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+// The allocation bounds (src/lib.rs): linked only when named.
+use omnibench_fuzz as _;
 use std::path::Path;
 
 fuzz_target!(|data: &[u8]| {

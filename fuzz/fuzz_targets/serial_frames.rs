@@ -4,6 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+// The allocation bounds (src/lib.rs): linked only when named.
+use omnibench_fuzz as _;
 use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
 
 fn check<T: serde::Serialize + serde::de::DeserializeOwned>(data: &[u8]) {

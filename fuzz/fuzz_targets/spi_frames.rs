@@ -3,6 +3,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+// The allocation bounds (src/lib.rs): linked only when named.
+use omnibench_fuzz as _;
 use protocol::spi::{self, MasterFrame, SlaveFrame, SPI_FRAME_LEN};
 
 fuzz_target!(|data: &[u8]| {
