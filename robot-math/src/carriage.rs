@@ -276,9 +276,14 @@ impl CarriageExact {
     }
 
     /// The swivel angle of a code as a binary angle (code k of 2^bits stands for k/2^bits turn).
+    ///
+    /// In 32 bits, then moved up: `abs_bits` is 1..=16, so the code fills the top bits of
+    /// the high word and the low word is zero. A 64-bit shift by a variable amount is a
+    /// library call on the M3 (two of them ran every update), a 32-bit one an instruction.
     fn swivel(&self, code: u16) -> u64 {
-        let mask = (1u64 << self.abs_bits) - 1;
-        (code as u64 & mask) << (64 - self.abs_bits as u32)
+        let bits = self.abs_bits as u32;
+        let high = (code as u32 & ((1u32 << bits) - 1)) << (32 - bits);
+        (high as u64) << 32
     }
 
     fn dir(&self, phi: u64) -> (i64, i64) {

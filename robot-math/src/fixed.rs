@@ -14,9 +14,15 @@ const PI_Q29: i64 = 1_686_629_713; // round(π · 2^29)
 /// Multiply two Q31 numbers of magnitude below 2^31, rounding to nearest: one 32 × 32-bit
 /// multiply (a 64 × 64 one is three on the M3, and the divisions the old Horner form took
 /// were library calls).
+///
+/// Written as `(p >> 31) + bit 30 of p`, which is `(p + 2^30) >> 31` exactly (p = q·2^31 + r
+/// with 0 <= r < 2^31: both are q plus whether r >= 2^30). With the addition in 64 bits, LLVM
+/// carried the operands as 64-bit values and made each product a 64 × 32-bit multiply; this
+/// way each is one `smull` and four 32-bit instructions.
 #[inline(always)]
 fn mul_q31(a: i32, b: i32) -> i32 {
-    ((a as i64 * b as i64 + (1 << 30)) >> 31) as i32
+    let p = a as i64 * b as i64;
+    ((p >> 31) as i32).wrapping_add(((p >> 30) & 1) as i32)
 }
 
 /// The Taylor coefficients in Q31: sin x = x(1 + S1 x² + S2 x⁴ + S3 x⁶ + S4 x⁸),
@@ -52,8 +58,10 @@ pub fn sin_cos(angle: u32) -> (i64, i64) {
     // Radians in Q31: t / 2^29 · π/4 · 2^31 = t · π (at most π/4 · 2^31 < 2^31).
     let x = ((t * PI_Q29 + (1 << 28)) >> 29) as i32;
     let (s, c) = sin_cos_octant(x);
-    let (s, c) = ((s + 1) >> 1, (c + 1) >> 1); // Q31 -> Q30
-    match octant {
+    // Q31 -> Q30, which fits 32 bits (cos 0 = 2^31 in Q31 does not): the octant's signs
+    // and swaps then move 32-bit values, not 64-bit pairs.
+    let (s, c) = (((s + 1) >> 1) as i32, ((c + 1) >> 1) as i32);
+    let (s, c) = match octant {
         0 => (s, c),
         1 => (c, s),
         2 => (c, -s),
@@ -62,7 +70,8 @@ pub fn sin_cos(angle: u32) -> (i64, i64) {
         5 => (-c, -s),
         6 => (-c, s),
         _ => (-s, c),
-    }
+    };
+    (s as i64, c as i64)
 }
 
 /// Multiply by a Q30 factor, rounding to nearest (ties away from zero is fine: unbiased

@@ -84,6 +84,10 @@ pub struct Odometry {
     trackers: [TickTracker; MAX_ENCODERS],
     /// Cumulative whole counts (zero past the layout's encoders).
     counts: [i64; MAX_ENCODERS],
+    /// What `exact` saw of each wheel at the last update, Q16 counts (zero past the layout's
+    /// encoders). Written in place each update: a local array returned or zeroed is a
+    /// `memcpy` or `memclr` call at opt-level "z".
+    positions: [i64; MAX_ENCODERS],
     /// Absolute encoder position (decoded), 0 without one.
     abs: u16,
     pose: FixedPose,
@@ -118,6 +122,7 @@ impl Odometry {
             sensors,
             trackers: counts.map(|c| TickTracker::starting(c, t_ns)),
             counts,
+            positions: [0; MAX_ENCODERS],
             abs,
             pose: start,
             lut_origin: (
@@ -158,8 +163,7 @@ impl Odometry {
         let counts_f64 = self.counts.map(|c| c as f64);
         Ok(match method {
             Method::Exact => {
-                let mut q = [0i64; MAX_ENCODERS];
-                self.positions_q16(t_ns, &mut q);
+                let q = self.positions_q16(t_ns);
                 let exact = *layout.exact();
                 State::Exact(match (layout.carriage(), layout.abs()) {
                     (Some(c), Some(a)) => ExactState::Carriage(
@@ -245,19 +249,36 @@ impl Odometry {
 
     /// What `exact` sees of each wheel, Q16 counts: interpolated between ticks at `t_ns` with
     /// time stamps, the whole counts otherwise; zero past the encoders. Integer-only.
-    fn positions_q16(&self, t_ns: u64, q: &mut [i64; MAX_ENCODERS]) {
-        let n = self.layout.encoders();
-        for (j, (slot, (tracker, count))) in q
-            .iter_mut()
-            .zip(self.trackers.iter().zip(self.counts))
-            .enumerate()
-        {
-            if j < n {
-                *slot = match self.sensors {
-                    SensorKind::Ticks => tracker.position_q16(t_ns),
-                    SensorKind::Counts => count.wrapping_shl(16),
-                };
+    fn positions_q16(&self, t_ns: u64) -> [i64; MAX_ENCODERS] {
+        core::array::from_fn(|j| self.position_q16(j, t_ns))
+    }
+
+    /// [`Self::positions_q16`] into `self.positions`, in place (the update's way).
+    fn refresh_positions(&mut self, t_ns: u64) {
+        let n = self.layout.encoders().min(MAX_ENCODERS);
+        let out = &mut self.positions[..n];
+        // The sensor kind decided once, not per wheel.
+        match self.sensors {
+            SensorKind::Ticks => {
+                for (p, tracker) in out.iter_mut().zip(&self.trackers) {
+                    *p = tracker.position_q16(t_ns);
+                }
             }
+            SensorKind::Counts => {
+                for (p, &count) in out.iter_mut().zip(&self.counts) {
+                    *p = count.wrapping_shl(16);
+                }
+            }
+        }
+    }
+
+    fn position_q16(&self, j: usize, t_ns: u64) -> i64 {
+        if j >= self.layout.encoders() {
+            0
+        } else if self.sensors == SensorKind::Ticks {
+            self.trackers[j].position_q16(t_ns)
+        } else {
+            self.counts[j].wrapping_shl(16)
         }
     }
 
@@ -310,11 +331,9 @@ impl Odometry {
         if self.sensors != SensorKind::Counts {
             return;
         }
-        let n = self.layout.encoders();
-        for (j, (c, &new)) in self.counts.iter_mut().zip(counts).enumerate() {
-            if j < n {
-                *c = new;
-            }
+        let n = self.layout.encoders().min(MAX_ENCODERS);
+        for (c, &new) in self.counts[..n].iter_mut().zip(counts) {
+            *c = new;
         }
     }
 
@@ -338,11 +357,11 @@ impl Odometry {
     /// `exact`'s update. Integer-only (an entry point of `scripts/check-no-float.py`).
     #[inline(never)]
     fn update_exact(&mut self, t_ns: u64) -> FixedPose {
-        let mut q = [0i64; MAX_ENCODERS];
-        self.positions_q16(t_ns, &mut q);
+        self.refresh_positions(t_ns);
+        let q = &self.positions;
         if let State::Exact(e) = &mut self.state {
             self.pose = match e {
-                ExactState::Body(o) => o.update_q16(&q),
+                ExactState::Body(o) => o.update_q16(q),
                 ExactState::Carriage(c) => c.update_q16([q[0], q[1]], self.abs),
             };
         }
@@ -390,12 +409,12 @@ impl Odometry {
     /// Integer-only (an entry point of `scripts/check-no-float.py`).
     #[inline(never)]
     fn set_pose_exact(&mut self, pose: FixedPose, t_ns: u64) {
-        let mut q = [0i64; MAX_ENCODERS];
-        self.positions_q16(t_ns, &mut q);
+        self.refresh_positions(t_ns);
+        let q = &self.positions;
         if let State::Exact(e) = &mut self.state {
             match e {
                 ExactState::Body(o) => {
-                    o.update_q16(&q);
+                    o.update_q16(q);
                     o.set_pose(pose);
                 }
                 ExactState::Carriage(c) => {
