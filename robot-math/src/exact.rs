@@ -22,7 +22,7 @@
 //! boot); [`ExactOdometry::update_q16`] then uses integers only. [`ExactOracle`] is the f64
 //! twin that the tests hold it to.
 
-use crate::fixed::{mul_q30_wide, shr_round, sin_cos};
+use crate::fixed::{mul_q30_wide, mul_q31, shr_round, sin_cos};
 use crate::se2::Pose2;
 use crate::wheelset::WheelSolver;
 
@@ -357,13 +357,16 @@ impl ExactOdometry {
         let wy = mul_q30_wide(dx, s) + mul_q30_wide(dy, c);
         // sinc(h) = 1 - h²/6 + h⁴/120 for the half-turn h (< 1/16 turn per chunk: the next
         // term is below 1e-8 relative, and per update at real rates far smaller still).
-        let h_q31 = ((half >> 32) * 1_686_629_713 + (1 << 28)) >> 29; // BAM·π, Q31 radians
-        let h2 = (h_q31 * h_q31 + (1 << 30)) >> 31;
-        let h4 = (h2 * h2 + (1 << 30)) >> 31;
-        // 1 - sinc(h), Q30; applied as a correction so the big product never forms.
-        // h²/6 and h⁴/120 as multiply-and-shift (|h2| < 2^31): no 64-bit divisions.
-        let eps_q30 =
-            half_toward_zero((((h2 * 357_913_941) >> 31) - ((h4 * 17_895_697) >> 31)) + 1);
+        // BAM·π, Q31 radians; |h| < π/8 (half the chunking's 1/8 turn), so it fits 32 bits
+        // and the squares are `smull`s.
+        let h_q31 = (((half >> 32) * 1_686_629_713 + (1 << 28)) >> 29) as i32;
+        let h2 = mul_q31(h_q31, h_q31);
+        let h4 = mul_q31(h2, h2);
+        // 1 - sinc(h), Q30 (below 0.026: 32 bits); applied as a correction so the big product
+        // never forms. h²/6 and h⁴/120 as multiply-and-shift: no 64-bit divisions.
+        let eps_q30 = half_toward_zero(
+            (((h2 as i64 * 357_913_941) >> 31) - ((h4 as i64 * 17_895_697) >> 31)) + 1,
+        ) as i32;
         pose.x += wx - mul_q30_wide(wx, eps_q30);
         pose.y += wy - mul_q30_wide(wy, eps_q30);
         pose.theta = pose.theta.wrapping_add(dth);

@@ -20,7 +20,7 @@ const PI_Q29: i64 = 1_686_629_713; // round(π · 2^29)
 /// carried the operands as 64-bit values and made each product a 64 × 32-bit multiply; this
 /// way each is one `smull` and four 32-bit instructions.
 #[inline(always)]
-fn mul_q31(a: i32, b: i32) -> i32 {
+pub fn mul_q31(a: i32, b: i32) -> i32 {
     let p = a as i64 * b as i64;
     ((p >> 31) as i32).wrapping_add(((p >> 30) & 1) as i32)
 }
@@ -45,8 +45,8 @@ fn sin_cos_octant(x: i32) -> (i64, i64) {
     (sin, cos)
 }
 
-/// (sin, cos) of a binary angle, Q30.
-pub fn sin_cos(angle: u32) -> (i64, i64) {
+/// (sin, cos) of a binary angle, Q30 (32 bits: the products with them are `smull`s).
+pub fn sin_cos(angle: u32) -> (i32, i32) {
     let octant = angle >> 29;
     let within = (angle & ((1 << 29) - 1)) as i64;
     // Odd octants run backwards from the next multiple of π/4.
@@ -61,7 +61,7 @@ pub fn sin_cos(angle: u32) -> (i64, i64) {
     // Q31 -> Q30, which fits 32 bits (cos 0 = 2^31 in Q31 does not): the octant's signs
     // and swaps then move 32-bit values, not 64-bit pairs.
     let (s, c) = (((s + 1) >> 1) as i32, ((c + 1) >> 1) as i32);
-    let (s, c) = match octant {
+    match octant {
         0 => (s, c),
         1 => (c, s),
         2 => (c, -s),
@@ -70,8 +70,7 @@ pub fn sin_cos(angle: u32) -> (i64, i64) {
         5 => (-c, -s),
         6 => (-c, s),
         _ => (-s, c),
-    };
-    (s as i64, c as i64)
+    }
 }
 
 /// Multiply by a Q30 factor, rounding to nearest (ties away from zero is fine: unbiased
@@ -86,24 +85,30 @@ pub fn mul_q30(a: i64, f: i64) -> i64 {
     }
 }
 
-/// `round(a · f / 2^30)` for |a| < 2^46 and |f| <= 2^31 without overflowing 64 bits: `a` is
-/// split into a high part (exact multiple of 2^16) and a 16-bit low part, each multiplied and
-/// rounded separately (at most one unit of error in the result).
+/// `round(a · f / 2^30)` for |a| < 2^46 without overflowing 64 bits: `a` is split into a
+/// high part (exact multiple of 2^16) and a 16-bit low part, each multiplied and rounded
+/// separately (at most one unit of error in the result). The factor is 32 bits (a Q30 sine,
+/// cosine or sinc correction), so every product is one `smull`.
 #[inline(always)]
-pub fn mul_q30_wide(a: i64, f: i64) -> i64 {
-    if a == a as i32 as i64 && f == f as i32 as i64 {
-        // Both fit 32 bits (a step's displacement, nearly always): one exact multiply.
-        return shr_round(a * f, 30);
+pub fn mul_q30_wide(a: i64, f: i32) -> i64 {
+    if a == a as i32 as i64 {
+        // Fits 32 bits (a step's displacement, nearly always): one exact multiply.
+        return shr_round(a as i32 as i64 * f as i64, 30);
     }
     mul_q30_split(a, f)
 }
 
-/// [`mul_q30_wide`] for a factor or value past 32 bits.
+/// [`mul_q30_wide`] for a value past 32 bits (the carriage's trail, always).
 #[inline(never)]
-fn mul_q30_split(a: i64, f: i64) -> i64 {
+fn mul_q30_split(a: i64, f: i32) -> i64 {
     let hi = a >> 16;
-    let lo = a & 0xFFFF;
-    shr_round(hi * f, 14) + shr_round(lo * f, 30)
+    let lo = (a & 0xFFFF) as i32;
+    let hi_f = if hi == hi as i32 as i64 {
+        hi as i32 as i64 * f as i64 // |a| < 2^47: one `smull`
+    } else {
+        hi * f as i64
+    };
+    shr_round(hi_f, 14) + shr_round(lo as i64 * f as i64, 30)
 }
 
 /// Shift right by `n` with rounding to nearest, symmetric about zero (no drift towards −∞).
@@ -150,7 +155,15 @@ mod tests {
             65_535,
             -65_536,
         ] {
-            for &f in &[0i64, 1 << 30, -(1 << 30), 1 << 31, 759_250_124, -3] {
+            for &f in &[
+                0i32,
+                1 << 30,
+                -(1 << 30),
+                i32::MAX,
+                i32::MIN,
+                759_250_124,
+                -3,
+            ] {
                 let exact = (a as i128 * f as i128) as f64 / (1u64 << 30) as f64;
                 let got = mul_q30_wide(a, f);
                 assert!(
