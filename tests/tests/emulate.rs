@@ -314,6 +314,40 @@ fn a_slave_reset_mid_run_stops_the_motors_and_the_host_is_told() {
     assert!(s.final_error_m > 0.5, "{s:?}");
 }
 
+/// Reset instants a float comparison misjudged (`1_100_000 µs · 1e-6 < 1.1`): the pose after the
+/// reset (the power-on pose, metres off) was scored into the max error for them. And a reset
+/// under SPI noise: the slave's rejected-frame count starts again from 0, which must not read
+/// as 65 536 more rejections, and the fault check's clean run resets too, so the same motion
+/// still ends bit for bit where it did.
+#[test]
+fn a_reset_is_scored_from_its_instant_and_its_counters_start_again() {
+    for at in [1.1, 1.33] {
+        let s = run_default(1, |o| {
+            o.duration = 3.0;
+            o.faults.slave_reset_at = Some(at);
+        })
+        .summary;
+        assert!(s.max_error_m < FINAL_ERROR_BOUND_M, "reset at {at}: {s:?}");
+        assert!(s.final_error_m > 0.1, "reset at {at}: {s:?}");
+    }
+    let scenario = Scenario::seed004_pursuit();
+    let mut opts = Options::new(&scenario);
+    opts.duration = 3.0;
+    opts.keep_log = false;
+    opts.faults.spi.corrupt = 0.3;
+    opts.faults.slave_reset_at = Some(1.0);
+    let faulty = emulator::run(&scenario, &opts).unwrap().summary;
+    let injected = faulty.spi_injected.corrupted_to_slave;
+    // Frames corrupted on their way to a slave that is booting are never read by it.
+    assert!(
+        faulty.spi_rejected_by_slave <= injected && faulty.spi_rejected_by_slave + 50 > injected,
+        "{} rejected by the slave, {injected} corrupted to it",
+        faulty.spi_rejected_by_slave
+    );
+    let check = emulator::fault_check(&scenario, &opts, &faulty).unwrap();
+    assert!(check.same_motion_equals_clean, "{check:?}");
+}
+
 /// The slave's update rate is a setting (issue 11): at 10 kHz it integrates ten times as often
 /// with the same accuracy, and the master, still polling every 2 ms, sees its pose as it is.
 #[test]

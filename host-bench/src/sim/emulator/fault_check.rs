@@ -9,6 +9,10 @@ use super::{hw, run, Faults, Options, Scenario, Summary};
 
 /// A run with link faults against the same run clean.
 ///
+/// "Clean" means without the link faults (SPI and serial); a slave that resets or loses
+/// power, or a host that falls silent, does so in the clean run too, or the two could never
+/// be compared (a reset puts the slave back at its power-on pose).
+///
 /// In the closed loop the two cannot end at the same pose: while frames are lost the master
 /// steers on older ones, so the robot itself moves a little differently. What the links must
 /// not do is lose or corrupt odometry. So the faulty run is made a second time with the robot
@@ -37,7 +41,11 @@ pub struct FaultCheck {
 pub fn fault_check(scenario: &Scenario, opts: &Options, faulty: &Summary) -> Result<FaultCheck> {
     let duties = Arc::new(Mutex::new(Vec::new()));
     let clean_opts = Options {
-        faults: Faults::default(),
+        faults: Faults {
+            spi: Default::default(),
+            serial: Default::default(),
+            ..opts.faults.clone()
+        },
         keep_log: false,
         duties: hw::DutySource::Record(duties.clone()),
         ..opts.clone()

@@ -311,6 +311,9 @@ pub fn run_logged(
         at_s,
         ..SlaveResetSeen::default()
     });
+    // The instant the slave resets, as the board task has it: compared as instants, since
+    // `1_100_000 µs · 1e-6 < 1.1` (a float comparison scored the reset pose for many times).
+    let reset_at = slave_reset;
 
     sim.run_until_idle();
     loop {
@@ -332,12 +335,18 @@ pub fn run_logged(
         // Score the slave at every update, at the very instant it sampled its sensors, once
         // the motion has started (the host's set-pose has been applied by then).
         let frame = slave_shared.frame();
-        slave_rejects.1 += frame.rx_rejected.wrapping_sub(slave_rejects.0) as u64;
+        // A reset starts the slave's count again from 0: what it counts since is new.
+        let restarted = reset_at.is_some_and(|r| next >= r) && frame.rx_rejected < slave_rejects.0;
+        slave_rejects.1 += if restarted {
+            frame.rx_rejected as u64
+        } else {
+            frame.rx_rejected.wrapping_sub(slave_rejects.0) as u64
+        };
         slave_rejects.0 = frame.rx_rejected;
         if last_seq != Some(frame.seq) {
             last_seq = Some(frame.seq);
             slave_updates += 1;
-            let reset = reset_seen.is_some_and(|r| next.as_micros() as f64 * 1e-6 >= r.at_s);
+            let reset = reset_at.is_some_and(|r| next >= r);
             if host_log.borrow().follow_sent_at.is_some() && !reset {
                 let err = slave_shared.pose().distance_to(plant.borrow().body());
                 max_error = max_error.max(err);
@@ -381,7 +390,7 @@ pub fn run_logged(
         }
         if let Some(r) = reset_seen
             .as_mut()
-            .filter(|r| next.as_micros() as f64 * 1e-6 >= r.at_s)
+            .filter(|_| reset_at.is_some_and(|r| next >= r))
         {
             let t_s = next.as_micros() as f64 * 1e-6;
             if plant.borrow().duty() == [0; 3] {
