@@ -318,30 +318,39 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }
-            let mut run = match &out {
+            // With --out, the files are written as the run goes but put in place only once
+            // it has scored something and the fault check is in: all of them or none.
+            let (mut run, files) = match &out {
                 Some(dir) => {
-                    let (run, written) = report::emulate_into(&scenario, &opts, dir)?;
-                    if !json {
-                        for p in written {
-                            eprintln!("wrote {}", p.display());
-                        }
-                    }
-                    run
+                    let (run, files) = report::emulate_into(&scenario, &opts, dir)?;
+                    (run, Some(files))
                 }
-                None => emulator::run(&scenario, &opts)?,
+                None => (emulator::run(&scenario, &opts)?, None),
             };
             let spi = opts.faults.spi;
             if spi != Default::default() {
                 let check = emulator::fault_check(&scenario, &opts, &run.summary)?;
                 run.summary.fault_check = Some(check);
             }
+            let nothing = emulator::nothing_scored(&run.summary);
+            if let (Some(files), None) = (files, &nothing) {
+                let written = files.commit(&run.summary)?;
+                if !json {
+                    for p in written {
+                        eprintln!("wrote {}", p.display());
+                    }
+                }
+            }
             if json {
                 println!("{}", serde_json::to_string(&run.summary)?);
             } else {
                 print!("{}", report::summary_text(&run.summary));
             }
-            if let Some(why) = emulator::nothing_scored(&run.summary) {
-                anyhow::bail!("{why}");
+            if let Some(why) = nothing {
+                match &out {
+                    Some(dir) => anyhow::bail!("{why} (nothing written to {})", dir.display()),
+                    None => anyhow::bail!("{why}"),
+                }
             }
             Ok(())
         }

@@ -615,3 +615,72 @@ fn a_bad_input_hunts_findings_are_refused() {
     );
     assert!(!out.exists(), "a failed run left {}", out.display());
 }
+
+/// The third hunt's findings on the outputs: a failed run replaces nothing, and no output is
+/// put where a device or FIFO is.
+#[test]
+fn a_failed_run_replaces_no_output_and_writes_over_no_device() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+
+    // init-bench --force over a FIFO replaced it with a regular file (its own atomic write
+    // skipped the check every other output has).
+    let fifo = d.join("bench.fifo");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    let o = Command::new(env!("CARGO_BIN_EXE_host-bench"))
+        .args(["init-bench", "--force", "--out", fifo.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("is not a regular file"), "{err}");
+    let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+    assert!(std::os::unix::fs::FileTypeExt::is_fifo(&kind));
+    std::fs::remove_file(&fifo).unwrap();
+
+    // emulate --out: a blocked path.svg is found before the run, and run.csv is untouched;
+    // a run that scores nothing puts none of its files in place.
+    let out = d.join("out");
+    std::fs::create_dir_all(out.join("path.svg")).unwrap();
+    std::fs::write(out.join("run.csv"), "OLD").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_host-bench"))
+        .args(["emulate", "--duration", "1", "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("path.svg"), "{err}");
+    assert_eq!(std::fs::read_to_string(out.join("run.csv")).unwrap(), "OLD");
+    std::fs::remove_dir(out.join("path.svg")).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_host-bench"))
+        .args(["emulate", "--duration", "2", "--fault-slave-off-at", "0"])
+        .args(["--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("nothing scored") && err.contains("nothing written"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(out.join("run.csv")).unwrap(), "OLD");
+    let left: Vec<_> = std::fs::read_dir(&out).unwrap().collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+    // And a new folder for such a run is not left behind.
+    let new = d.join("new/sub");
+    refused(
+        &[
+            "emulate",
+            "--duration",
+            "2",
+            "--fault-slave-off-at",
+            "0",
+            "--out",
+            new.to_str().unwrap(),
+        ],
+        "nothing written",
+        None,
+    );
+    assert!(!d.join("new").exists());
+}

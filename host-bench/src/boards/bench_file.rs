@@ -262,39 +262,25 @@ pub fn render(draft: &BenchDraft) -> String {
     out
 }
 
-/// Writes `text` to `path` atomically: a temporary file in the same folder, renamed over the
-/// target only once complete, so a crash never leaves a half-written bench.toml. Refuses to
+/// Writes `text` to `path` atomically (through [`crate::formats::atomic`], as every output:
+/// never over a device, FIFO or folder, removed on Ctrl-C, the usual permissions). Refuses to
 /// replace an existing file unless `force`.
 pub fn write_atomically(path: &Path, text: &str, force: bool) -> Result<(), String> {
-    if path.exists() && !force {
+    if std::fs::symlink_metadata(path).is_ok() && !force {
         return Err(format!(
             "{} already exists; pass --force to replace it",
             path.display()
         ));
     }
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(folder)
-        .map_err(|e| format!("cannot create a file in {}: {e}", folder.display()))?;
-    tmp.write_all(text.as_bytes())
-        .and_then(|()| tmp.as_file().sync_all())
-        .map_err(|e| format!("cannot write {}: {e}", tmp.path().display()))?;
-    if force {
-        tmp.persist(path)
-            .map_err(|e| format!("cannot write {}: {}", path.display(), e.error))?;
+    let (_, staged) = crate::formats::atomic::stage(path, |f| Ok(f.write_all(text.as_bytes())?))
+        .map_err(|e| format!("{e:#}"))?;
+    let put = if force {
+        staged.commit()
     } else {
-        // persist_noclobber: another process creating the file meanwhile is not overwritten.
-        tmp.persist_noclobber(path).map_err(|e| {
-            format!(
-                "cannot write {} (already exists? pass --force): {}",
-                path.display(),
-                e.error
-            )
-        })?;
-    }
-    Ok(())
+        // Another process creating the file meanwhile is not overwritten.
+        staged.commit_new()
+    };
+    put.map_err(|e| format!("{e:#}"))
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::formats::atomic::write_atomically;
+use crate::formats::atomic::{stage, write_atomically, Staged};
 use crate::sim::emulator::{self, LogRow, Run, Scenario, Summary};
 
 /// The short summary `emulate` prints.
@@ -166,15 +166,41 @@ pub const MAX_PLOTTED_ROWS: usize = 10_000;
 /// every k-th of a longer one, so a week's run writes as much as 2.8 hours' (it wrote 11 GB).
 pub const MAX_CSV_ROWS: u64 = 1_000_000;
 
-/// Emulate `scenario` and write `run.csv` (every log row, streamed to disk as the run makes
-/// it), `path.svg` (from the rows thinned to at most 2 × [`MAX_PLOTTED_ROWS`]) and
-/// `summary.json` into `dir` (created if missing; removed again if it was new and the run
-/// failed). Returns the run (its `log` the thinned rows) and the files written.
+/// An `emulate --out` run's files, written under temporary names, none yet in place.
+/// [`commit`](Self::commit) puts them all in place; dropped (the run scored nothing, the fault
+/// check failed, Ctrl-C), none is, no existing one is replaced, and a folder it made goes.
+pub struct EmulateFiles {
+    // Dropped in this order: the temporary files first, then the folder (if it is empty).
+    staged: Vec<(PathBuf, Staged)>,
+    json_path: PathBuf,
+    dir: crate::formats::atomic::OutputDir,
+}
+
+impl EmulateFiles {
+    /// Writes `summary.json` from `summary` (the run's, with what was added since: the fault
+    /// check) and puts the three files in place.
+    pub fn commit(self, summary: &emulator::Summary) -> Result<Vec<PathBuf>> {
+        let (_, json) = stage(&self.json_path, |file| {
+            serde_json::to_writer_pretty(&mut *file, summary)?;
+            Ok(file.write_all(b"\n")?)
+        })?;
+        let mut written = Vec::new();
+        for (path, file) in self.staged.into_iter().chain([(self.json_path, json)]) {
+            file.commit()?;
+            written.push(path);
+        }
+        self.dir.keep();
+        Ok(written)
+    }
+}
+
+/// Runs `scenario` writing `run.csv` and `path.svg` for `--out dir` (staged: see
+/// [`EmulateFiles`]). Every output is checked before the run starts.
 pub fn emulate_into(
     scenario: &Scenario,
     opts: &emulator::Options,
     dir: &Path,
-) -> Result<(Run, Vec<PathBuf>)> {
+) -> Result<(Run, EmulateFiles)> {
     emulator::check_options(opts)?;
     if dir.exists() && !dir.is_dir() {
         anyhow::bail!("--out {}: exists and is not a directory", dir.display());
@@ -182,19 +208,38 @@ pub fn emulate_into(
     // Made with its parents, and gone again (if empty) should the run fail or be stopped.
     let out = crate::formats::atomic::OutputDir::create(dir)
         .with_context(|| format!("--out {}", dir.display()))?;
-    let written = write_run_files(scenario, opts, dir)?;
-    out.keep();
-    Ok(written)
+    let (csv_path, svg_path, json_path) = (
+        dir.join("run.csv"),
+        dir.join("path.svg"),
+        dir.join("summary.json"),
+    );
+    for p in [&csv_path, &svg_path, &json_path] {
+        crate::formats::atomic::check_output(p)
+            .with_context(|| format!("--out {}", dir.display()))?;
+    }
+    let (run, csv) = stage_run_csv(scenario, opts, &csv_path)?;
+    let mut text = String::new();
+    draw_run(
+        &run,
+        SVGBackend::with_string(&mut text, (800, 1100)).into_drawing_area(),
+    )?;
+    let (_, svg) = stage(&svg_path, |file| Ok(file.write_all(text.as_bytes())?))?;
+    Ok((
+        run,
+        EmulateFiles {
+            dir: out,
+            staged: vec![(csv_path, csv), (svg_path, svg)],
+            json_path,
+        },
+    ))
 }
 
-fn write_run_files(
+/// The run, its log streamed into `csv_path` (staged).
+fn stage_run_csv(
     scenario: &Scenario,
     opts: &emulator::Options,
-    dir: &Path,
-) -> Result<(Run, Vec<PathBuf>)> {
-    let csv_path = dir.join("run.csv");
-    let svg_path = dir.join("path.svg");
-    let json_path = dir.join("summary.json");
+    csv_path: &Path,
+) -> Result<(Run, Staged)> {
     let mut plotted = Thinned::new(MAX_PLOTTED_ROWS);
     let rows = (opts.duration / opts.log_period).ceil().max(1.0);
     let every = (rows / MAX_CSV_ROWS as f64).ceil().max(1.0) as u64;
@@ -202,7 +247,7 @@ fn write_run_files(
     // The run's own failure (a session the master refused, ...) is reported as itself, not as
     // a file that could not be written.
     let mut run_failed = None;
-    let summary = write_atomically(&csv_path, |file| {
+    let staged = stage(csv_path, |file| {
         let mut w = csv::Writer::from_writer(std::io::BufWriter::new(file));
         let mut write_failed = false;
         let summary = emulator::run_logged(
@@ -231,21 +276,18 @@ fn write_run_files(
         w.flush()?;
         Ok(summary)
     });
-    let summary = match (summary, run_failed) {
+    let (summary, csv) = match (staged, run_failed) {
         (Ok(s), _) => s,
         (Err(_), Some(run_error)) => return Err(run_error),
         (Err(e), None) => return Err(e),
     };
-    let run = Run {
-        summary,
-        log: plotted.rows,
-    };
-    write_svg(&svg_path, |root| draw_run(&run, root))?;
-    write_atomically(&json_path, |file| {
-        serde_json::to_writer_pretty(&mut *file, &run.summary)?;
-        Ok(file.write_all(b"\n")?)
-    })?;
-    Ok((run, vec![csv_path, svg_path, json_path]))
+    Ok((
+        Run {
+            summary,
+            log: plotted.rows,
+        },
+        csv,
+    ))
 }
 
 /// Every `stride`-th row of a stream, the stride doubling whenever `2 × cap` rows are kept:

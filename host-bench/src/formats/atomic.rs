@@ -186,6 +186,53 @@ pub fn write_atomically<T>(
     path: &Path,
     write: impl FnOnce(&mut File) -> anyhow::Result<T>,
 ) -> anyhow::Result<T> {
+    let (value, staged) = stage(path, write)?;
+    staged.commit()?;
+    Ok(value)
+}
+
+/// A file written whole under its temporary name and not yet in place: [`commit`](Self::commit)
+/// renames it over its target; dropped (or on a signal), it is deleted. For a run that writes
+/// several files and must put all of them in place or none (`emulate --out`).
+pub struct Staged {
+    path: PathBuf,
+    // Declared before `_listed`, so dropped first: the file is gone before it is unlisted.
+    tmp: tempfile::NamedTempFile,
+    _listed: Listed,
+}
+
+impl Staged {
+    /// Puts the file in place unless something is there by now (`init-bench` without
+    /// `--force`).
+    pub fn commit_new(self) -> anyhow::Result<()> {
+        let Staged { path, tmp, _listed } = self;
+        tmp.persist_noclobber(&path).map_err(|e| {
+            anyhow::Error::new(e.error)
+                .context(format!("cannot write {} (it exists now)", path.display()))
+        })?;
+        Ok(())
+    }
+
+    /// Puts the file in place (a rename in its own folder).
+    pub fn commit(self) -> anyhow::Result<()> {
+        let Staged { path, tmp, _listed } = self;
+        tmp.persist(&path).map_err(|e| {
+            anyhow::Error::new(e.error).context(format!(
+                "cannot rename {} to {}",
+                e.file.path().display(),
+                path.display()
+            ))
+        })?;
+        Ok(())
+    }
+}
+
+/// [`write_atomically`] up to the rename: `path` is checked, written under a temporary name
+/// and synced; the returned [`Staged`] puts it in place.
+pub fn stage<T>(
+    path: &Path,
+    write: impl FnOnce(&mut File) -> anyhow::Result<T>,
+) -> anyhow::Result<(T, Staged)> {
     check_output(path)?;
     let folder = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -223,14 +270,14 @@ pub fn write_atomically<T>(
             Ok(value)
         })
         .with_context(|| format!("cannot write {}", path.display()))?;
-    tmp.persist(path).map_err(|e| {
-        anyhow::Error::new(e.error).context(format!(
-            "cannot rename {} to {}",
-            e.file.path().display(),
-            path.display()
-        ))
-    })?;
-    Ok(value)
+    Ok((
+        value,
+        Staged {
+            path: path.to_path_buf(),
+            tmp,
+            _listed: listed,
+        },
+    ))
 }
 
 #[cfg(test)]
