@@ -667,6 +667,22 @@ fn a_failed_run_replaces_no_output_and_writes_over_no_device() {
     assert_eq!(std::fs::read_to_string(out.join("run.csv")).unwrap(), "OLD");
     let left: Vec<_> = std::fs::read_dir(&out).unwrap().collect();
     assert_eq!(left.len(), 1, "{left:?}");
+    // A file name ending in `/` failed only at the rename, naming a temporary file.
+    let slashed = format!("{}/", d.join("x.csv").display());
+    refused(
+        &[
+            "generate",
+            "--robot",
+            &repo("robots/seed001.toml"),
+            "--trajectory",
+            "twist-arcs",
+            "--out",
+            &slashed,
+        ],
+        "the name ends in /, a folder's",
+        None,
+    );
+    assert!(!d.join("x.csv").exists());
     // And a new folder for such a run is not left behind.
     let new = d.join("new/sub");
     refused(
@@ -683,4 +699,54 @@ fn a_failed_run_replaces_no_output_and_writes_over_no_device() {
         None,
     );
     assert!(!d.join("new").exists());
+}
+
+/// Scenario values inside their own ranges that the master would refuse (a gain that rounds
+/// to zero on the wire, a speed or a path faster than the robot): refused when the file is
+/// read, at the key, not as "the master refused the session" once the run has begun.
+#[test]
+fn what_the_master_would_refuse_is_refused_at_the_scenario_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let robots = format!("{}/", repo("robots"));
+    let square = std::fs::read_to_string(repo("scenarios/seed002-square.toml"))
+        .unwrap()
+        .replace("../robots/", &robots);
+    let pursuit = std::fs::read_to_string(repo("scenarios/seed004-pursuit.toml"))
+        .unwrap()
+        .replace("../robots/", &robots);
+    let slow = std::fs::read_to_string(repo("robots/seed002.toml"))
+        .unwrap()
+        .replace("v_max_m_s = 0.8", "v_max_m_s = 0.2");
+    file(d, "slow.toml", &slow);
+    let slow_square = square.replace(&format!("{robots}seed002.toml"), "slow.toml");
+    assert_ne!(slow_square, square);
+    let pursuit_fast = {
+        let line = pursuit
+            .lines()
+            .find(|l| l.starts_with("robot_speed_m_s"))
+            .unwrap();
+        pursuit.replace(line, "robot_speed_m_s = 100")
+    };
+    for (name, text, says) in [
+        (
+            "gain.toml",
+            square.replacen("k_forward = 8.0", "k_forward = 0.0004", 1),
+            "key `controller.k_forward`: must be at least 0.001",
+        ),
+        (
+            "slow-square.toml",
+            slow_square,
+            "key `trajectory.name`: the path's peak speed, 0.400 m/s, is above the robot's top speed, 0.200 m/s",
+        ),
+        (
+            "fast.toml",
+            pursuit_fast,
+            "key `target.robot_speed_m_s`: 100 m/s is above the robot's top speed",
+        ),
+    ] {
+        let path = file(d, name, &text);
+        refused(&["emulate", "--scenario", &path], &format!("{name}:"), None);
+        refused(&["emulate", "--scenario", &path], says, None);
+    }
 }

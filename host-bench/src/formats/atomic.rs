@@ -135,6 +135,19 @@ impl Drop for OwnCtrlC {
 /// folder was (`record --out /dev/null`, as root, replaced /dev/null). Callers that write
 /// several files, or work a long time first, call it on each before they start.
 pub fn check_output(path: &Path) -> anyhow::Result<()> {
+    // `x.csv/` names a folder: the rename would fail only after all the work, and say so
+    // about a temporary file.
+    if path
+        .as_os_str()
+        .to_string_lossy()
+        .ends_with(std::path::MAIN_SEPARATOR)
+    {
+        anyhow::bail!(
+            "cannot write {}: the name ends in {}, a folder's; name a file",
+            path.display(),
+            std::path::MAIN_SEPARATOR
+        );
+    }
     match std::fs::symlink_metadata(path) {
         Ok(m) if m.file_type().is_file() => {}
         Ok(m) => anyhow::bail!(

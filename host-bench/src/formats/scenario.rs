@@ -238,7 +238,18 @@ impl TomlFile<'_> {
                 if x > 1000.0 {
                     return Err(self.at(v.span(), &key, format!("must be at most 1000, got {x}")));
                 }
-                Ok(Some((x / unit).round()))
+                let on_wire = (x / unit).round();
+                if positive && on_wire == 0.0 {
+                    return Err(self.at(
+                        v.span(),
+                        &key,
+                        format!(
+                            "must be at least {unit} (the master takes it in steps of {unit}), \
+                             got {x}"
+                        ),
+                    ));
+                }
+                Ok(Some(on_wire))
             };
             let milli = |v, key, positive| gain(v, key, positive, 1e-3);
             let micro = |v, key| gain(v, key, false, 1e-6);
@@ -381,6 +392,7 @@ impl TomlFile<'_> {
             }
         }
 
+        self.check_within_drive(&raw, &drive, &motion)?;
         Ok(Scenario {
             name,
             description: raw.description.trim().to_string(),
@@ -411,6 +423,84 @@ impl TomlFile<'_> {
                 format!("cannot use {}: {e}", path.display())
             ))
         })
+    }
+
+    /// What the master would refuse, refused here at its key with the same test (the master's
+    /// own `DriveSetup` and top speed): a scenario inside every documented range can still ask
+    /// more than its robot can do, and the run would only say "the master refused".
+    fn check_within_drive(
+        &self,
+        raw: &RawScenario,
+        drive: &protocol::serial::DriveGeometry,
+        motion: &Motion,
+    ) -> Result<()> {
+        let Some(setup) = firmware_master::drive_setup::DriveSetup::from_geometry(drive) else {
+            // The controller's gains have no span of their own here: the robot line, or the
+            // file's first.
+            let span = raw.robot.as_ref().map_or(0..1, |r| r.span());
+            return Err(anyhow!(self.at(
+                span,
+                "controller",
+                "the master cannot drive this robot with these settings (its drive geometry \
+                 is impossible: check the robot's drive wheels and the controller's gains)",
+            )));
+        };
+        let top = setup.kinematics.max_speed();
+        let too_fast = |v: f64| v > top;
+        match (motion, &raw.target, &raw.trajectory) {
+            (
+                Motion::Pursue {
+                    robot_speed,
+                    target_speed,
+                    ..
+                },
+                Some(t),
+                _,
+            ) => {
+                for (v, spanned, key) in [
+                    (
+                        *robot_speed,
+                        &t.get_ref().robot_speed_m_s,
+                        "target.robot_speed_m_s",
+                    ),
+                    (*target_speed, &t.get_ref().speed_m_s, "target.speed_m_s"),
+                ] {
+                    if too_fast(v) {
+                        return Err(anyhow!(self.at(
+                            spanned.span(),
+                            key,
+                            format!(
+                                "{v} m/s is above the robot's top speed, {top:.3} m/s (the \
+                                 master refuses it)"
+                            ),
+                        )));
+                    }
+                }
+            }
+            (Motion::Track { .. }, _, Some(t)) => {
+                let path = crate::sim::emulator::reference::ReferencePath::new(motion)?;
+                // Every millisecond of the path: the host samples it no finer.
+                let steps = (path.duration() * 1e3).ceil().min(1e7) as u64;
+                let peak = (0..=steps)
+                    .map(|k| {
+                        let (vx, vy) = path.at(k as f64 * 1e-3).velocity;
+                        vx.hypot(vy)
+                    })
+                    .fold(0.0, f64::max);
+                if too_fast(peak) {
+                    return Err(anyhow!(self.at(
+                        t.get_ref().name.span(),
+                        "trajectory.name",
+                        format!(
+                            "the path's peak speed, {peak:.3} m/s, is above the robot's top \
+                             speed, {top:.3} m/s (the master refuses its samples)"
+                        ),
+                    )));
+                }
+            }
+            _ => {}
+        }
+        Ok(())
     }
 
     fn target(&self, t: &RawTarget) -> Result<Motion> {

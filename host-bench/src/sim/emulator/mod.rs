@@ -521,8 +521,8 @@ pub fn run_logged(
     }
     if h.fingerprint_match.is_none() {
         bail!(
-            "the run ended after {} s, before the master answered the host's hello: nothing was \
-             run to score (--duration of 0.1 s at least)",
+            "the run ended after {:?} s, before the master answered the host's hello: nothing \
+             was run to score (--duration of 0.1 s at least)",
             opts.duration
         );
     }
