@@ -116,14 +116,12 @@ impl QuadratureDecoder {
         QuadratureDecoder { last: levels & 3 }
     }
 
-    /// Position of a level pair in the forward cycle.
+    /// Position of a level pair in the forward cycle 00, 01, 11, 10: the levels are its Gray
+    /// code, so the position is `g ^ (g >> 1)` (branch-free: it runs on every edge).
+    #[inline(always)]
     const fn phase(levels: u8) -> u8 {
-        match levels & 3 {
-            0b00 => 0,
-            0b01 => 1,
-            0b11 => 2,
-            _ => 3,
-        }
+        let g = levels & 3;
+        g ^ (g >> 1)
     }
 
     /// The levels an encoder shows at cumulative count `c` (for emulation and tests).
@@ -134,7 +132,7 @@ impl QuadratureDecoder {
     pub fn edge(&mut self, levels: u8) -> Quadrature {
         let (from, to) = (Self::phase(self.last), Self::phase(levels));
         self.last = levels & 3;
-        match (to + 4 - from) % 4 {
+        match to.wrapping_sub(from) & 3 {
             0 => Quadrature::None,
             1 => Quadrature::Step(1),
             3 => Quadrature::Step(-1),

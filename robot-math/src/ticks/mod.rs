@@ -25,6 +25,8 @@
 
 pub mod start;
 
+use core::num::NonZeroU64;
+
 /// One wheel's tick history.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TickTracker {
@@ -32,11 +34,14 @@ pub struct TickTracker {
     count: i64,
     /// The edge (multiple of the step, in counts) the last tick crossed.
     edge: i64,
-    last_t: Option<u64>,
-    /// Interval between the last two ticks, when they went the same way.
-    interval: Option<u64>,
+    /// The last tick's time (meaningful once `dir` is not 0: a plain `u64`, because the tag
+    /// of an `Option<u64>` costs moves and checks on every edge on the M3).
+    last_t: u64,
+    /// Interval between the last two ticks, when they went the same way (never 0: a tick
+    /// at the same instant gives none, so `NonZeroU64` needs no tag).
+    interval: Option<NonZeroU64>,
     /// The interval before that, when it went the same way too.
-    prev_interval: Option<u64>,
+    prev_interval: Option<NonZeroU64>,
     dir: i8,
     /// Power-on (or when the estimator started watching the wheel).
     start_ns: u64,
@@ -79,7 +84,7 @@ impl TickTracker {
         TickTracker {
             count,
             edge: count,
-            last_t: None,
+            last_t: 0,
             interval: None,
             prev_interval: None,
             dir: 0,
@@ -95,22 +100,30 @@ impl TickTracker {
     /// A tick at `t_ns`, `step` = +1 or -1 (anything else is ignored: a corrupt event must
     /// not move the count by more than one).
     // Out of line so `scripts/check-no-float.py` can see it in the object code (small functions
-    // are otherwise only generated where they are used); one call per tick costs nothing here.
+    // are otherwise only generated where they are used). The slave's edge path
+    // ([`tick_wheel`]) has the body inlined instead: a call is a tenth of an edge's cost.
     #[inline(never)]
     pub fn tick(&mut self, t_ns: u64, step: i8) {
-        if step != 1 && step != -1 {
-            return;
+        if step == 1 || step == -1 {
+            self.advance(t_ns, step);
         }
+    }
+
+    /// [`tick`](Self::tick) for a `step` known to be ±1.
+    #[inline(always)]
+    fn advance(&mut self, t_ns: u64, step: i8) {
         // Forward to count m crosses edge m; backward to count m - 1 crosses edge m too.
         self.edge = if step > 0 { self.count + 1 } else { self.count };
         self.count += step as i64;
         let same_way = self.dir == step;
         self.prev_interval = if same_way { self.interval } else { None };
-        self.interval = match self.last_t {
-            Some(prev) if same_way && t_ns > prev => Some(t_ns - prev),
-            _ => None,
+        // `same_way` implies a tick before (`dir` is 0 until the first).
+        self.interval = if same_way {
+            NonZeroU64::new(t_ns.saturating_sub(self.last_t))
+        } else {
+            None
         };
-        self.last_t = Some(t_ns);
+        self.last_t = t_ns;
         self.dir = step;
         // Only a wheel's first ticks: every later one skips the fit's call altogether.
         if self.placing() {
@@ -191,7 +204,7 @@ impl TickTracker {
     /// tick), Q16 counts, plus the count at power-on: an edge is `phase` after the count it
     /// starts. Before the first tick it is the count at power-on (no motion seen).
     pub fn position_q16(&self, t_ns: u64) -> i64 {
-        if self.last_t.is_none() {
+        if self.dir == 0 {
             return self.count << 16;
         }
         self.edge_position_q16(t_ns) - self.phase_q16
@@ -201,26 +214,25 @@ impl TickTracker {
     /// second tick in the new direction there is no speed to go on: the wheel is taken to be
     /// at its last edge.
     fn edge_position_q16(&self, t_ns: u64) -> i64 {
-        let (Some(last), Some(interval)) = (self.last_t, self.interval) else {
+        let Some(interval) = self.interval else {
             return self.edge << 16;
         };
-        let since = t_ns.saturating_sub(last);
-        // Positive by construction; `max(1)` lets the compiler see it too, so no
-        // divide-by-zero panic path reaches the board.
-        let interval = interval.max(1);
+        // Dividing by the `NonZeroU64` itself: no divide-by-zero panic path reaches the board.
+        let (nz, interval) = (interval, interval.get());
+        let since = t_ns.saturating_sub(self.last_t);
         if interval >= 1 << 40 {
             // Over 18 minutes between two edges: a stopped wheel.
             return self.edge << 16;
         }
         // x = τ / T2 in Q16, capped at 8 steps' worth of time (well past any clamp below).
-        let x = ((since.min(interval * 8) << 16) / interval) as i64;
+        let x = ((since.min(interval * 8) << 16) / nz) as i64;
         let frac = match self.prev_interval {
             None => x, // one interval only: constant speed
             Some(t1) => {
                 // ρ = T2 / T1 in Q16, limited to [1/16, 16] so one odd interval cannot
                 // throw the fit far.
                 // `interval < 2^40` (checked above), so the shift fits 64 bits.
-                let rho = ((interval << 16) / t1.max(1)).clamp(1 << 12, 1 << 20) as i64;
+                let rho = ((interval << 16) / t1).clamp(1 << 12, 1 << 20) as i64;
                 // c = (1 − ρ)·ρ / (1 + ρ), Q16.
                 let c = ((1 << 16) - rho) * rho / ((1 << 16) + rho);
                 // Braking: the fitted speed reaches zero at x* = −(1 + c) / (2c); hold there.
@@ -369,12 +381,15 @@ mod tests {
 
 /// A tick of wheel `j` of `wheels` at `t_ns`, `step` = ±1; while that wheel's first ticks
 /// are being gathered, every wheel is placed again ([`place_together`]), and after that the
-/// tick costs nothing more. Integer-only. Returns the wheel's count, or `None` for a wheel
-/// that is not in `wheels`.
+/// tick costs nothing more. Integer-only. Returns the wheel's count, or `None` (and changes
+/// nothing) for a wheel that is not in `wheels` or a step that is not ±1.
 pub fn tick_wheel(wheels: &mut [TickTracker], j: usize, t_ns: u64, step: i8) -> Option<i64> {
     let w = wheels.get_mut(j)?;
+    if step != 1 && step != -1 {
+        return None;
+    }
     let placing = w.placing();
-    w.tick(t_ns, step);
+    w.advance(t_ns, step);
     let count = w.count();
     if placing {
         place_together(wheels);
@@ -389,6 +404,10 @@ pub fn tick_wheel(wheels: &mut [TickTracker], j: usize, t_ns: u64, step: i8) -> 
 /// its own speed, under half a count, and the fastest wheel narrows the window for all.
 /// Called by [`tick_wheel`] after a tick of a wheel that was
 /// [`placing`](TickTracker::placing) before it: no other tick changes a window. Integer-only.
+// Cold and out of line: it runs for a wheel's first few ticks only, and inlined its frame
+// would be set up on every edge.
+#[cold]
+#[inline(never)]
 pub fn place_together(trackers: &mut [TickTracker]) {
     let (mut lo, mut hi, mut any) = (0u64, u64::MAX, false);
     for w in trackers.iter().filter_map(TickTracker::start_window) {
