@@ -27,14 +27,13 @@ impl Robot {
                 }),
             None => None,
         };
-        Layout::from_geometry(&wheels, self.carriage.map(|c| c.trail_m), abs)
-            .map_err(|e| {
-                anyhow!(
-                    "robot {}: key `encoders`: {e} (what the odometry in replay, play, record \
+        Layout::from_geometry(&wheels, self.carriage.map(|c| c.trail_m), abs).map_err(|e| {
+            anyhow!(
+                "robot {}: key `encoders`: {e} (what the odometry in replay, play, record \
                      and the slave takes; generate takes any layout: docs/robot-format.md)",
-                    self.name
-                )
-            })
+                self.name
+            )
+        })
     }
 
     /// Index (in `absolute_encoders`) of the encoder the layout's absolute encoder is.
