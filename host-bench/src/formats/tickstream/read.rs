@@ -79,6 +79,18 @@ impl Parser<'_> {
     }
 }
 
+/// Counts a comment or blank line: past [`MAX_OTHER_LINES`] the file is refused (a small gzip
+/// of them would keep the reader busy for minutes).
+fn other_line(p: &Parser<'_>, count: &mut u64) -> Result<(), ReadError> {
+    *count += 1;
+    if *count > MAX_OTHER_LINES {
+        return Err(p.error(format!(
+            "more than {MAX_OTHER_LINES} comment or blank lines (is this a tick stream?)"
+        )));
+    }
+    Ok(())
+}
+
 fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> {
     let mut p = Parser { path, line_no: 0 };
     let mut stream = TickStream::default();
@@ -139,20 +151,8 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
         }
 
         let trimmed = text.trim_start();
-        let blank_cells = || {
-            trimmed
-                .bytes()
-                .all(|b| b == b',' || b.is_ascii_whitespace())
-        };
-        if trimmed.starts_with('#') || blank_cells() {
-            other_lines += 1;
-            if other_lines > MAX_OTHER_LINES {
-                return Err(p.error(format!(
-                    "more than {MAX_OTHER_LINES} comment or blank lines (is this a tick stream?)"
-                )));
-            }
-        }
         if let Some(comment) = trimmed.strip_prefix('#') {
+            other_line(&p, &mut other_lines)?;
             // Spreadsheets pad every row to the same number of cells: ignore trailing commas.
             let comment = comment.trim_end_matches(|c: char| c == ',' || c.is_whitespace());
             if let Some(robot) = comment.trim_start().strip_prefix("robot:") {
@@ -182,12 +182,16 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
             continue;
         }
         if trimmed.is_empty() {
+            other_line(&p, &mut other_lines)?;
             continue;
         }
 
         split_fields(text, &mut fields).map_err(|m| p.error(m))?;
+        // A row of empty cells, as spreadsheets write for a blank row: `,,,` or `"",""` (the
+        // quoted ones too, or a gzip of them would take minutes to refuse).
         if fields.iter().all(|&(a, b)| text[a..b].trim().is_empty()) {
-            continue; // a row of empty cells, as spreadsheets write for a blank row
+            other_line(&p, &mut other_lines)?;
+            continue;
         }
         match &header {
             None => header = Some(parse_header(&p, text, &fields)?),
