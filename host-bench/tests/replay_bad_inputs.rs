@@ -101,3 +101,26 @@ fn rows_of_quoted_empty_cells_count_as_blank_lines() {
         "t.csv:1000003: more than 1000000 comment or blank lines",
     );
 }
+
+#[test]
+fn cr_only_line_endings_are_refused_saying_so() {
+    let dir = scratch("replay-bad-inputs/cr");
+    std::fs::copy(data("diff-drive.toml"), dir.join("diff-drive.toml")).unwrap();
+    // CR line endings alone (classic Mac OS): the whole file is one line.
+    let text = std::fs::read_to_string(data("python-circle.csv")).unwrap();
+    let cr = text.replace("\r\n", "\r").replace('\n', "\r");
+    std::fs::write(dir.join("cr.csv"), cr).unwrap();
+    refused(
+        &dir,
+        &["replay", "--ticks", "cr.csv"],
+        "cr.csv:1: the line endings are CR alone",
+    );
+    // And past the longest line.
+    let long = format!("{HEAD}{}", "0,truth,,,0,0,0\r".repeat(80_000)).replace('\n', "\r");
+    std::fs::write(dir.join("long.csv"), long).unwrap();
+    refused(
+        &dir,
+        &["replay", "--ticks", "long.csv"],
+        "long.csv:1: the line endings are CR alone",
+    );
+}

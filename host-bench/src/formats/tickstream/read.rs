@@ -91,6 +91,17 @@ fn other_line(p: &Parser<'_>, count: &mut u64) -> Result<(), ReadError> {
     Ok(())
 }
 
+/// A carriage return that does not end the line or precede its line feed: the file's line
+/// endings are CR alone (classic Mac OS), which makes all of it one line.
+fn lone_cr(line: &[u8]) -> bool {
+    let body = line.strip_suffix(b"\n").unwrap_or(line);
+    let body = body.strip_suffix(b"\r").unwrap_or(body);
+    body.contains(&b'\r')
+}
+
+const CR_ONLY: &str = "the line endings are CR alone (classic Mac OS): not supported; save the \
+                       file with LF or CR LF line endings";
+
 fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> {
     let mut p = Parser { path, line_no: 0 };
     let mut stream = TickStream::default();
@@ -121,9 +132,12 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
         if line[end - 1] == b'\n' {
             end -= 1;
         } else if end > MAX_LINE_BYTES {
-            return Err(p.error(format!(
-                "line is longer than {MAX_LINE_BYTES} bytes (is this a tick stream?)"
-            )));
+            // A file with CR line endings alone reads as one long line.
+            return Err(p.error(if lone_cr(&line) {
+                CR_ONLY.to_string()
+            } else {
+                format!("line is longer than {MAX_LINE_BYTES} bytes (is this a tick stream?)")
+            }));
         }
         if end > 0 && line[end - 1] == b'\r' {
             end -= 1;
@@ -137,6 +151,9 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
             return Err(p.error(
                 "missing magic line: the data looks gzip-compressed but was read as plain text",
             ));
+        }
+        if p.line_no == 1 && lone_cr(bytes) {
+            return Err(p.error(CR_ONLY));
         }
         let text = std::str::from_utf8(bytes).map_err(|e| {
             p.error(format!(
