@@ -124,3 +124,25 @@ fn cr_only_line_endings_are_refused_saying_so() {
         "long.csv:1: the line endings are CR alone",
     );
 }
+
+#[test]
+fn a_stream_one_row_over_the_limit_is_refused_under_200_mb() {
+    use host_bench::formats::tickstream::MAX_EVENTS;
+    use std::io::Write;
+    let dir = scratch("replay-bad-inputs/rows");
+    std::fs::copy(data("diff-drive.toml"), dir.join("diff-drive.toml")).unwrap();
+    let file = std::fs::File::create(dir.join("t.csv.gz")).unwrap();
+    let mut gz = flate2::write::GzEncoder::new(file, flate2::Compression::fast());
+    gz.write_all(HEAD.as_bytes()).unwrap();
+    let rows = "1,tick,0,1,,,\n".repeat(1 << 16);
+    for _ in 0..MAX_EVENTS >> 16 {
+        gz.write_all(rows.as_bytes()).unwrap();
+    }
+    gz.write_all(b"1,tick,1,1,,,\n").unwrap();
+    gz.finish().unwrap();
+    refused(
+        &dir,
+        &["replay", "--ticks", "t.csv.gz"],
+        &format!("t.csv.gz:{}: more than {MAX_EVENTS} events", MAX_EVENTS + 4),
+    );
+}
