@@ -84,6 +84,20 @@ fn refused(dir: &Path, args: &[&str], says: &str) -> String {
     err
 }
 
+/// A folder for `test` with the documented Python example's stream and robot in it.
+fn with_example(test: &str) -> PathBuf {
+    let dir = scratch(&format!("replay-bad-inputs/{test}"));
+    for name in ["python-circle.csv", "diff-drive.toml"] {
+        std::fs::copy(data(name), dir.join(name)).unwrap();
+    }
+    dir
+}
+
+fn board(dir: &Path, rows: &str) {
+    let text = format!("t_ns,x_m,y_m,theta_rad\n100000000,0,0,0\n200000000,0,0,0\n{rows}");
+    std::fs::write(dir.join("python-circle.board.csv"), text).unwrap();
+}
+
 #[test]
 fn rows_of_quoted_empty_cells_count_as_blank_lines() {
     let dir = scratch("replay-bad-inputs/quoted-blank");
@@ -145,4 +159,72 @@ fn a_stream_one_row_over_the_limit_is_refused_under_200_mb() {
         &["replay", "--ticks", "t.csv.gz"],
         &format!("t.csv.gz:{}: more than {MAX_EVENTS} events", MAX_EVENTS + 4),
     );
+}
+
+#[test]
+fn a_board_pose_file_that_is_huge_or_not_a_regular_file_is_refused_naming_it() {
+    let dir = with_example("board-size");
+    let ticks = ["replay", "--ticks", "python-circle.csv"];
+    let path = dir.join("python-circle.board.csv");
+    // 1 GiB of nothing (sparse): once read whole into 3 GB, then ignored, exit 0.
+    std::fs::File::create(&path)
+        .unwrap()
+        .set_len(1 << 30)
+        .unwrap();
+    refused(
+        &dir,
+        &ticks,
+        "python-circle.board.csv: larger than 8192 KiB",
+    );
+    std::fs::remove_file(&path).unwrap();
+    // A folder and a FIFO by that name: refused unread (a FIFO's open does not wait).
+    std::fs::create_dir(&path).unwrap();
+    refused(&dir, &ticks, "python-circle.board.csv: not a regular file");
+    std::fs::remove_dir(&path).unwrap();
+    let made = Command::new("mkfifo").arg(&path).status().unwrap();
+    assert!(made.success());
+    refused(&dir, &ticks, "python-circle.board.csv: not a regular file");
+    std::fs::remove_file(&path).unwrap();
+    // Rows past the documented count.
+    let mut rows = String::from("t_ns,x_m,y_m,theta_rad\n");
+    for k in 0..=host_bench::eval::board_poses::MAX_ROWS {
+        rows.push_str(&format!("{k},0,0,0\n"));
+    }
+    std::fs::write(&path, rows).unwrap();
+    refused(
+        &dir,
+        &ticks,
+        "python-circle.board.csv:100002: more than 100000 board poses",
+    );
+}
+
+#[test]
+fn board_poses_that_are_not_finite_or_out_of_range_are_refused_at_their_line() {
+    let dir = with_example("board-values");
+    let ticks = ["replay", "--ticks", "python-circle.csv"];
+    for (row, says) in [
+        (
+            "300000000,0,0,NaN\n",
+            "python-circle.board.csv:4: theta_rad must be finite",
+        ),
+        (
+            "300000000,inf,0,0\n",
+            "python-circle.board.csv:4: x_m must be finite",
+        ),
+        ("300000000,0,1e300,0\n", "within ±1e6 m, got 1e300"),
+        ("300000000,0,0,2e6\n", "within ±1e6 rad, got 2e6"),
+        (
+            "xyz,0,0,0\n",
+            "python-circle.board.csv:4: t_ns must be a whole number",
+        ),
+        (
+            "300000000,0,0\n",
+            "python-circle.board.csv:4: expected 4 fields",
+        ),
+    ] {
+        board(&dir, row);
+        refused(&dir, &ticks, says);
+        let json = [&ticks[..], &["--json"]].concat();
+        refused(&dir, &json, says);
+    }
 }
