@@ -228,3 +228,73 @@ fn board_poses_that_are_not_finite_or_out_of_range_are_refused_at_their_line() {
         refused(&dir, &json, says);
     }
 }
+
+#[test]
+fn errors_about_a_streams_content_name_its_line() {
+    let dir = scratch("replay-bad-inputs/lines");
+    std::fs::copy(data("diff-drive.toml"), dir.join("diff-drive.toml")).unwrap();
+    let start = "0,truth,,,0,0,0\n# a comment\n\n";
+    for (name, row, says) in [
+        (
+            "id.csv",
+            "1,tick,65535,1,,,\n",
+            "id.csv:7: tick for encoder 65535 at t = 1 ns",
+        ),
+        (
+            "abs.csv",
+            "1,abs,0,5,,,\n",
+            "abs.csv:7: abs reading of absolute encoder 0",
+        ),
+    ] {
+        let text = format!("{HEAD}{start}{row}1,tick,0,1,,,\n2,truth,,,0.01,0,0\n");
+        std::fs::write(dir.join(name), text).unwrap();
+        let err = refused(&dir, &["replay", "--ticks", name], says);
+        assert!(!err.contains("no estimator can run"), "{err}");
+    }
+}
+
+#[test]
+fn counts_rates_below_the_documented_range_are_refused_at_the_flag() {
+    let dir = scratch("replay-bad-inputs/counts-rate");
+    std::fs::copy(data("diff-drive.toml"), dir.join("diff-drive.toml")).unwrap();
+    let stream =
+        format!("{HEAD}5,truth,,,0,0,0\n6,tick,0,1,,,\n6,tick,1,1,,,\n7,truth,,,0.01,0,0\n");
+    std::fs::write(dir.join("t.csv"), stream).unwrap();
+    let run = |rate: &'static str| ["replay", "--ticks", "t.csv", "--counts-rate", rate];
+    for rate in ["1e-300", "5e-11", "0.0009"] {
+        refused(
+            &dir,
+            &run(rate),
+            "--counts-rate: counts sampling rate must be 1e-3 to 1e9 Hz",
+        );
+    }
+    // The slowest rate, its first sample past the stream's end: nothing is sampled to score.
+    refused(
+        &dir,
+        &run("1e-3"),
+        "t.csv: nothing scored: read at 0.001 Hz",
+    );
+}
+
+#[test]
+fn truth_rows_that_never_move_score_nothing() {
+    let dir = scratch("replay-bad-inputs/still");
+    std::fs::copy(data("diff-drive.toml"), dir.join("diff-drive.toml")).unwrap();
+    let text = format!("{HEAD}0,truth,,,0,0,0\n1,tick,0,1,,,\n1,tick,0,-1,,,\n2,truth,,,0,0,0\n");
+    std::fs::write(dir.join("still.csv"), text).unwrap();
+    let err = refused(
+        &dir,
+        &["replay", "--ticks", "still.csv"],
+        "still.csv: nothing scored",
+    );
+    assert!(err.contains("did not move"), "{err}");
+    // A turn in place is motion: scored.
+    let text = format!("{HEAD}0,truth,,,0,0,0\n1,tick,0,1,,,\n1,tick,1,-1,,,\n2,truth,,,0,0,0.1\n");
+    std::fs::write(dir.join("spin.csv"), text).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_host-bench"))
+        .current_dir(&dir)
+        .args(["replay", "--ticks", "spin.csv", "--algorithm", "exact"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -65,12 +65,17 @@ pub fn run_replay(
     out: Option<PathBuf>,
     json: bool,
 ) -> anyhow::Result<()> {
-    use host_bench::eval::replay;
+    use host_bench::eval::{replay, replay_checks as checks};
     use host_bench::formats::{robot::Robot, tickstream};
-    let mode = counts_rate.map_or(replay::Mode::Timestamps, |rate_hz| replay::Mode::Counts {
-        rate_hz,
-    });
-    let stream = tickstream::read(&ticks)?;
+    // The flag before any file is read.
+    let mode = match counts_rate {
+        Some(rate_hz) => {
+            checks::check_counts_rate(rate_hz).context("--counts-rate")?;
+            replay::Mode::Counts { rate_hz }
+        }
+        None => replay::Mode::Timestamps,
+    };
+    let (stream, lines) = tickstream::read_with_lines(&ticks)?;
     let robot_path = match robot {
         Some(p) => p,
         None => stream.robot_path(&ticks).ok_or_else(|| {
@@ -81,6 +86,11 @@ pub fn run_replay(
         })?,
     };
     let robot = Robot::load(&robot_path)?;
+    // Checked before any method runs (not as every method's own "cannot run"): the events
+    // against the robot, each at its line, and what there is to score.
+    checks::check_events(&robot, &stream)
+        .map_err(|e| anyhow::anyhow!("{}:{}: {}", ticks.display(), lines.of(e.index), e.message))?;
+    checks::check_scorable(&stream, mode).with_context(|| ticks.display().to_string())?;
     let names: Vec<&str> = if algorithm == "all" {
         replay::ALGORITHMS.to_vec()
     } else {

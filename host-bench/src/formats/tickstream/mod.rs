@@ -19,10 +19,12 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use event::Event;
-pub use read::{read, read_from};
+pub use lines::Lines;
+pub use read::{read, read_from, read_with_lines};
 pub use write::write;
 
 mod event;
+mod lines;
 mod read;
 mod row;
 #[cfg(test)]

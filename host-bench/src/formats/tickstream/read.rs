@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::row::{parse_header, parse_row, shown, split_fields, Header};
 use super::{
-    is_gz_name, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
+    is_gz_name, Lines, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
     MAX_KEPT_COMMENTS, MAX_KEPT_COMMENT_BYTES, MAX_LINE_BYTES, MAX_OTHER_LINES, READ_BUFFER_BYTES,
     UTF8_BOM,
 };
@@ -14,6 +14,11 @@ use flate2::read::MultiGzDecoder;
 /// Reads a tick stream file; gzip-compressed if its name ends in `.gz` or its data starts with
 /// the gzip magic bytes.
 pub fn read(path: &Path) -> Result<TickStream, ReadError> {
+    read_with_lines(path).map(|(stream, _)| stream)
+}
+
+/// [`read`], and where each event was in the file, for errors found after reading.
+pub fn read_with_lines(path: &Path) -> Result<(TickStream, Lines), ReadError> {
     let file = crate::formats::bounded_file::open_stream(path).map_err(|e| ReadError {
         path: path.to_path_buf(),
         line: None,
@@ -37,9 +42,9 @@ pub fn read(path: &Path) -> Result<TickStream, ReadError> {
     }
     if gzip_data {
         let decoder = MultiGzDecoder::new(input);
-        parse(BufReader::with_capacity(READ_BUFFER_BYTES, decoder), path)
+        parse_with_lines(BufReader::with_capacity(READ_BUFFER_BYTES, decoder), path)
     } else {
-        parse(input, path)
+        parse_with_lines(input, path)
     }
 }
 
@@ -52,15 +57,16 @@ pub fn read_from(reader: impl Read, name_for_errors: &Path) -> Result<TickStream
         line: None,
         message: format!("cannot read: {e}"),
     })?;
-    if head.starts_with(&GZIP_MAGIC) {
+    let parsed = if head.starts_with(&GZIP_MAGIC) {
         let decoder = MultiGzDecoder::new(input);
-        parse(
+        parse_with_lines(
             BufReader::with_capacity(READ_BUFFER_BYTES, decoder),
             name_for_errors,
         )
     } else {
-        parse(input, name_for_errors)
-    }
+        parse_with_lines(input, name_for_errors)
+    };
+    parsed.map(|(stream, _)| stream)
 }
 
 /// The line-by-line parser's state.
@@ -79,14 +85,24 @@ impl Parser<'_> {
     }
 }
 
-/// Counts a comment or blank line: past [`MAX_OTHER_LINES`] the file is refused (a small gzip
-/// of them would keep the reader busy for minutes).
-fn other_line(p: &Parser<'_>, count: &mut u64) -> Result<(), ReadError> {
+/// Counts a comment or blank line: past [`MAX_OTHER_LINES`] the file is refused (a small gzip of
+/// them would keep the reader busy for minutes). After the header, notes where it fell.
+fn other_line(
+    p: &Parser<'_>,
+    count: &mut u64,
+    lines: &mut Lines,
+    events: usize,
+    header: bool,
+) -> Result<(), ReadError> {
     *count += 1;
     if *count > MAX_OTHER_LINES {
         return Err(p.error(format!(
             "more than {MAX_OTHER_LINES} comment or blank lines (is this a tick stream?)"
         )));
+    }
+    if header {
+        // At most MAX_OTHER_LINES of these; events fit a u32 (MAX_EVENTS is 2^22).
+        lines.gaps.push(events as u32);
     }
     Ok(())
 }
@@ -102,9 +118,13 @@ fn lone_cr(line: &[u8]) -> bool {
 const CR_ONLY: &str = "the line endings are CR alone (classic Mac OS): not supported; save the \
                        file with LF or CR LF line endings";
 
-fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> {
+pub(super) fn parse_with_lines(
+    mut input: impl BufRead,
+    path: &Path,
+) -> Result<(TickStream, Lines), ReadError> {
     let mut p = Parser { path, line_no: 0 };
     let mut stream = TickStream::default();
+    let mut lines = Lines::default();
     let mut line: Vec<u8> = Vec::with_capacity(256);
     let mut fields: Vec<(usize, usize)> = Vec::with_capacity(16);
     let mut header: Option<Header> = None;
@@ -168,8 +188,9 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
         }
 
         let trimmed = text.trim_start();
+        let (events, after_header) = (stream.events.len(), header.is_some());
         if let Some(comment) = trimmed.strip_prefix('#') {
-            other_line(&p, &mut other_lines)?;
+            other_line(&p, &mut other_lines, &mut lines, events, after_header)?;
             // Spreadsheets pad every row to the same number of cells: ignore trailing commas.
             let comment = comment.trim_end_matches(|c: char| c == ',' || c.is_whitespace());
             if let Some(robot) = comment.trim_start().strip_prefix("robot:") {
@@ -199,7 +220,7 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
             continue;
         }
         if trimmed.is_empty() {
-            other_line(&p, &mut other_lines)?;
+            other_line(&p, &mut other_lines, &mut lines, events, after_header)?;
             continue;
         }
 
@@ -207,11 +228,14 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
         // A row of empty cells, as spreadsheets write for a blank row: `,,,` or `"",""` (the
         // quoted ones too, or a gzip of them would take minutes to refuse).
         if fields.iter().all(|&(a, b)| text[a..b].trim().is_empty()) {
-            other_line(&p, &mut other_lines)?;
+            other_line(&p, &mut other_lines, &mut lines, events, after_header)?;
             continue;
         }
         match &header {
-            None => header = Some(parse_header(&p, text, &fields)?),
+            None => {
+                header = Some(parse_header(&p, text, &fields)?);
+                lines.header = p.line_no;
+            }
             Some(h) => {
                 let event = parse_row(&p, h, text, &fields)?;
                 let t = event.t_ns();
@@ -258,7 +282,7 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
              {MAX_KEPT_COMMENTS} comment lines and {MAX_KEPT_COMMENT_BYTES} bytes of them)"
         ));
     }
-    Ok(stream)
+    Ok((stream, lines))
 }
 
 fn check_magic(p: &Parser<'_>, text: &str) -> Result<(), ReadError> {
