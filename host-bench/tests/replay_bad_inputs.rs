@@ -298,3 +298,69 @@ fn truth_rows_that_never_move_score_nothing() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+#[test]
+fn replay_out_checks_every_input_first_and_leaves_nothing_when_it_fails() {
+    let dir = with_example("out-fails");
+    // A folder of earlier tracks, to be left as it was.
+    let old = dir.join("outA");
+    std::fs::create_dir(&old).unwrap();
+    for name in ["arc", "lut", "timing", "exact"] {
+        std::fs::write(old.join(format!("{name}.csv")), "earlier run\n").unwrap();
+    }
+    board(&dir, "xyz,0,0,0\n");
+    for out in ["outA", "outB", "new/deeper"] {
+        let args = ["replay", "--ticks", "python-circle.csv", "--out", out];
+        refused(&dir, &args, "python-circle.board.csv:4: t_ns");
+    }
+    assert!(!dir.join("outB").exists() && !dir.join("new").exists());
+    // A bad event, at the end of the stream: found before any track is written.
+    std::fs::remove_file(dir.join("python-circle.board.csv")).unwrap();
+    let text = std::fs::read_to_string(dir.join("python-circle.csv")).unwrap();
+    let lines = text.lines().count();
+    std::fs::write(
+        dir.join("late.csv"),
+        format!("{text}99999999999,tick,2,1,,,\n"),
+    )
+    .unwrap();
+    let args = ["replay", "--ticks", "late.csv", "--out", "outA"];
+    refused(
+        &dir,
+        &args,
+        &format!("late.csv:{}: tick for encoder 2", lines + 1),
+    );
+    // And a good run writes all four.
+    let args = ["replay", "--ticks", "python-circle.csv", "--out", "outB"];
+    let o = Command::new(env!("CARGO_BIN_EXE_host-bench"))
+        .current_dir(&dir)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let written: Vec<_> = snapshot(&dir.join("outB")).into_keys().collect();
+    assert_eq!(written.len(), 4, "{written:?}");
+}
+
+#[test]
+fn replay_out_refuses_to_write_over_its_own_inputs() {
+    let dir = with_example("out-over-input");
+    std::fs::create_dir(dir.join("r2")).unwrap();
+    std::fs::copy(data("python-circle.csv"), dir.join("r2/exact.csv")).unwrap();
+    std::fs::copy(data("diff-drive.toml"), dir.join("r2/diff-drive.toml")).unwrap();
+    let args = ["replay", "--ticks", "r2/exact.csv", "--out", "r2"];
+    refused(&dir, &args, "r2/exact.csv is the tick stream");
+    // Named through another path to the same folder, and the robot file as a track's name.
+    let args = ["replay", "--ticks", "r2/exact.csv", "--out", "r2/../r2/."];
+    refused(&dir, &args, "is the tick stream");
+    std::fs::copy(data("diff-drive.toml"), dir.join("lut.csv")).unwrap();
+    let args = [
+        "replay",
+        "--ticks",
+        "python-circle.csv",
+        "--robot",
+        "lut.csv",
+        "--out",
+        ".",
+    ];
+    refused(&dir, &args, "lut.csv is the robot file");
+}

@@ -88,8 +88,13 @@ pub struct Score {
 impl Score {
     /// Write the track as CSV (t, truth, estimate, position error), atomically.
     pub fn write_track(&self, path: &std::path::Path) -> Result<()> {
-        crate::formats::atomic::write_atomically(path, |file| {
-            let mut w = csv::Writer::from_writer(file);
+        crate::formats::atomic::write_atomically(path, |file| self.write_track_to(file))
+    }
+
+    /// The track as CSV into `out` ([`write_track`](Self::write_track)'s content).
+    pub fn write_track_to(&self, out: impl std::io::Write) -> Result<()> {
+        {
+            let mut w = csv::Writer::from_writer(out);
             w.write_record([
                 "t_s",
                 "true_x_m",
@@ -117,7 +122,7 @@ impl Score {
             }
             w.flush()?;
             Ok(())
-        })
+        }
     }
 }
 

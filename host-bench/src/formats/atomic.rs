@@ -5,7 +5,9 @@
 //! (so the final rename never crosses a file system), flushed to disk, and only then renamed
 //! over the target. If the writer fails or panics, the temporary file is deleted (by
 //! [`tempfile::NamedTempFile`]'s drop) and an existing target is left untouched, so a reader
-//! never sees a half-written file and nothing half-written is left behind.
+//! never sees a half-written file and nothing half-written is left behind. A command that
+//! writes several files stages them ([`Staged`]) and renames them together at the end, so a
+//! run that fails part way replaces none of them.
 //!
 //! A process stopped by a signal runs no drops, so the temporary files in the making are also
 //! listed here, and [`remove_partials_on_signals`] (installed by `main`) deletes them on
@@ -186,6 +188,17 @@ pub fn write_atomically<T>(
     path: &Path,
     write: impl FnOnce(&mut File) -> anyhow::Result<T>,
 ) -> anyhow::Result<T> {
+    let (tmp, _listed, value) = write_temporary(path, write)?;
+    rename(tmp, path)?;
+    Ok(value)
+}
+
+/// `write` into a synced temporary file beside `path`, listed for the signal handler; the
+/// caller renames it (or drops it, which deletes it, then the listing).
+fn write_temporary<T>(
+    path: &Path,
+    write: impl FnOnce(&mut File) -> anyhow::Result<T>,
+) -> anyhow::Result<(tempfile::TempPath, Listed, T)> {
     check_output(path)?;
     let folder = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -223,14 +236,51 @@ pub fn write_atomically<T>(
             Ok(value)
         })
         .with_context(|| format!("cannot write {}", path.display()))?;
+    // Closed: a run staging hundreds of files holds no descriptor for each.
+    Ok((tmp.into_temp_path(), listed, value))
+}
+
+fn rename(tmp: tempfile::TempPath, path: &Path) -> anyhow::Result<()> {
     tmp.persist(path).map_err(|e| {
         anyhow::Error::new(e.error).context(format!(
             "cannot rename {} to {}",
-            e.file.path().display(),
+            e.path.display(),
             path.display()
         ))
-    })?;
-    Ok(value)
+    })
+}
+
+/// Several files written whole now and renamed into place together by [`commit`]: a run that
+/// writes more than one file, and fails (or is stopped) part way, replaces none of them. Each
+/// is written to its temporary file as it is ready (no file's content waits in memory for the
+/// others); dropped without `commit`, they are deleted.
+///
+/// [`commit`]: Staged::commit
+#[derive(Default)]
+pub struct Staged {
+    files: Vec<(tempfile::TempPath, Listed, PathBuf)>,
+}
+
+impl Staged {
+    /// Writes `path`'s content through `write` to its temporary file, as [`write_atomically`]
+    /// does, without the rename.
+    pub fn write(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&mut File) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        let (tmp, listed, ()) = write_temporary(path, write)?;
+        self.files.push((tmp, listed, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Renames every file into place, in the order written.
+    pub fn commit(self) -> anyhow::Result<()> {
+        for (tmp, _listed, path) in self.files {
+            rename(tmp, &path)?;
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -324,5 +374,27 @@ mod tests {
         File::create(&plain).unwrap();
         let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode(&path), mode(&plain));
+    }
+
+    #[test]
+    fn staged_files_appear_only_on_commit_and_are_gone_if_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
+        std::fs::write(&a, "old\n").unwrap();
+        let mut staged = Staged::default();
+        staged.write(&a, |f| Ok(f.write_all(b"new a\n")?)).unwrap();
+        staged.write(&b, |f| Ok(f.write_all(b"new b\n")?)).unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old\n");
+        assert_eq!(entries(dir.path()).len(), 3, "{:?}", entries(dir.path()));
+        drop(staged);
+        assert_eq!(entries(dir.path()), ["a.csv"]);
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old\n");
+
+        let mut staged = Staged::default();
+        staged.write(&a, |f| Ok(f.write_all(b"new a\n")?)).unwrap();
+        staged.write(&b, |f| Ok(f.write_all(b"new b\n")?)).unwrap();
+        staged.commit().unwrap();
+        assert_eq!(entries(dir.path()), ["a.csv", "b.csv"]);
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b\n");
     }
 }
