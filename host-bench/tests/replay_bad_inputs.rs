@@ -364,3 +364,28 @@ fn replay_out_refuses_to_write_over_its_own_inputs() {
     ];
     refused(&dir, &args, "lut.csv is the robot file");
 }
+
+#[test]
+fn accuracy_out_is_checked_before_the_work_and_leaves_nothing() {
+    let dir = scratch("replay-bad-inputs/accuracy-out");
+    refused(
+        &dir,
+        &["accuracy", "--seeds", "1", "--out", "/dev/null/x"],
+        "--out /dev/null/x: cannot create directory",
+    );
+    // One name in the way: refused before the work, no other file written.
+    std::fs::create_dir_all(dir.join("acc2/rest-then-arcs-seed001-counts-10000Hz.svg")).unwrap();
+    refused(
+        &dir,
+        &["accuracy", "--seeds", "1", "--out", "acc2"],
+        "acc2/rest-then-arcs-seed001-counts-10000Hz.svg: it exists and is not a regular file",
+    );
+    // A folder name too long for the file system: none of its parents made are left.
+    let long = format!("acc3/sub/{}", "x".repeat(300));
+    refused(
+        &dir,
+        &["accuracy", "--seeds", "1", "--out", &long],
+        "--out acc3/sub/xxx",
+    );
+    assert!(!dir.join("acc3").exists());
+}

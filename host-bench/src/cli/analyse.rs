@@ -1,5 +1,6 @@
 //! The analysis commands: `accuracy`, `replay` (`generate` is in `generate.rs`).
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
@@ -14,6 +15,12 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
         (1..=MAX_ACCURACY_SEEDS).contains(&seeds),
         "--seeds must be 1 to {MAX_ACCURACY_SEEDS}, got {seeds}"
     );
+    // The folder and every name it may get, checked before the minutes of work: a name in
+    // the way was found only after them, with hundreds of the other files already written.
+    let made = match &out {
+        Some(dir) => Some(output_dir(dir, &accuracy_files(dir)?, &[])?),
+        None => None,
+    };
     let total = accuracy::cases().len() as u64 * seeds;
     // indicatif draws only when stderr is a terminal: CI logs stay clean.
     let bar = indicatif::ProgressBar::new(total).with_style(
@@ -26,10 +33,10 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
     })?;
     bar.finish_and_clear();
     if let Some(dir) = &out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        // Renamed into place together: a file that fails leaves none of the others.
+        let mut staged = Staged::default();
         for r in &results {
-            let mode = r.mode.replace('@', "-");
+            let stem = accuracy::file_stem(&r.case, &r.robot, &r.mode);
             // The tracks and the picture of seed 0; the figures cover every seed.
             let first: Vec<_> = r
                 .algorithms
@@ -37,18 +44,21 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
                 .filter_map(|m| m.runs.first().cloned())
                 .collect();
             for s in &first {
-                s.write_track(&dir.join(format!("{}-{}-{mode}-{}.csv", r.case, r.robot, s.name)))?;
+                let path = dir.join(format!("{stem}-{}.csv", s.name));
+                staged.write(&path, |f| s.write_track_to(f))?;
             }
             let title = format!(
                 "{} on {} ({}, seed 0): paths and error",
                 r.case, r.robot, r.mode
             );
-            host_bench::eval::report::write_case_svg(
-                &dir.join(format!("{}-{}-{mode}.svg", r.case, r.robot)),
-                &title,
-                &first,
-            )?;
+            let svg = host_bench::eval::report::case_svg(&title, &first)?;
+            let path = dir.join(format!("{stem}.svg"));
+            staged.write(&path, |f| Ok(f.write_all(svg.as_bytes())?))?;
         }
+        staged.commit()?;
+    }
+    if let Some(made) = made {
+        made.keep();
     }
     if json {
         println!("{}", serde_json::json!({ "cases": results }));
@@ -56,6 +66,24 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
         print!("{}", accuracy::table(&results));
     }
     Ok(())
+}
+
+/// Every file `accuracy --out DIR` may write: each case's picture and each method's track,
+/// in every mode (a method that cannot run there writes none).
+fn accuracy_files(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    use host_bench::eval::{accuracy, replay};
+    let mut files = Vec::new();
+    for case in accuracy::cases() {
+        let robot = accuracy::robot(&case)?;
+        for mode in accuracy::modes() {
+            let stem = accuracy::file_stem(case.trajectory, &robot.name, &mode.to_string());
+            files.push(dir.join(format!("{stem}.svg")));
+            for name in replay::ALGORITHMS {
+                files.push(dir.join(format!("{stem}-{name}.csv")));
+            }
+        }
+    }
+    Ok(files)
 }
 
 /// `dir`, made with its parents for `files`, each checked before any work: a regular file or

@@ -288,9 +288,15 @@ fn write_svg(
     path: &Path,
     draw: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
 ) -> Result<()> {
+    let text = svg(draw)?;
+    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
+}
+
+/// An 800 x 1100 SVG drawn by `draw`, as text.
+fn svg(draw: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>) -> Result<String> {
     let mut text = String::new();
     draw(SVGBackend::with_string(&mut text, (800, 1100)).into_drawing_area())?;
-    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
+    Ok(text)
 }
 
 /// The run's plot: the paths on top, the position error against time below.
@@ -458,6 +464,11 @@ pub fn write_case_svg(
     scores: &[crate::eval::replay::Score],
 ) -> Result<()> {
     write_svg(path, |root| draw_case(root, title, scores))
+}
+
+/// [`write_case_svg`]'s picture, as text (for files written together, `atomic::Staged`).
+pub fn case_svg(title: &str, scores: &[crate::eval::replay::Score]) -> Result<String> {
+    svg(|root| draw_case(root, title, scores))
 }
 
 const METHOD_COLORS: [RGBColor; 4] = [
