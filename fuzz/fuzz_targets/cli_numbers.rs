@@ -4,6 +4,7 @@
 #![no_main]
 
 use host_bench::eval::replay::{self, Mode};
+use host_bench::eval::replay_checks::{MAX_COUNTS_RATE_HZ, MIN_COUNTS_RATE_HZ};
 use host_bench::formats::robot::Robot;
 use host_bench::formats::tickstream;
 use host_bench::sim::emulator::{self, Options, Scenario, MAX_DURATION_S};
@@ -16,7 +17,7 @@ use std::sync::OnceLock;
 const ROBOT: &str = include_str!("../../robots/seed001.toml");
 const STREAM: &str = "# omnibench tick stream v1\nt_ns,kind,id,value,x_m,y_m,theta_rad\n\
     0,truth,,,0,0,0\n5,tick,0,1,,,\n18000000000000000000,tick,1,1,,,\n\
-    18000000000000000001,truth,,,0,0,0\n";
+    18000000000000000001,truth,,,0.0008,0,0\n";
 
 fn number(bytes: &[u8]) -> f64 {
     let mut b = [0u8; 8];
@@ -55,7 +56,7 @@ fuzz_target!(|data: &[u8]| {
     // rate must finish at once.
     let rate_hz = at(5);
     if let Ok(score) = replay::replay_untracked(robot, stream, "arc", Mode::Counts { rate_hz }) {
-        assert!(rate_hz > 0.0 && rate_hz <= 1e9);
+        assert!((MIN_COUNTS_RATE_HZ..=MAX_COUNTS_RATE_HZ).contains(&rate_hz));
         assert!(score.final_error_m.is_finite());
     }
 });

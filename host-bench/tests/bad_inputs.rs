@@ -157,7 +157,7 @@ fn a_gap_of_centuries_between_two_ticks_costs_no_time() {
     let ticks = file(
         dir.path(),
         "gap.csv",
-        &format!("{STREAM_HEAD}0,truth,,,0,0,0\n5,tick,0,1,,,\n18000000000000000000,tick,0,1,,,\n18000000000000000001,truth,,,0,0,0\n"),
+        &format!("{STREAM_HEAD}0,truth,,,0,0,0\n5,tick,0,1,,,\n18000000000000000000,tick,0,1,,,\n18000000000000000001,truth,,,0.0008,0,0\n"),
     );
     let start = Instant::now();
     let o = Command::new(env!("CARGO_BIN_EXE_host-bench"))

@@ -272,13 +272,12 @@ pub fn write_atomically(path: &Path, text: &str, force: bool) -> Result<(), Stri
             path.display()
         ));
     }
-    let (_, staged) = crate::formats::atomic::stage(path, |f| Ok(f.write_all(text.as_bytes())?))
-        .map_err(|e| format!("{e:#}"))?;
+    let write = |f: &mut std::fs::File| Ok(f.write_all(text.as_bytes())?);
     let put = if force {
-        staged.commit()
+        crate::formats::atomic::write_atomically(path, write)
     } else {
         // Another process creating the file meanwhile is not overwritten.
-        staged.commit_new()
+        crate::formats::atomic::write_new(path, write)
     };
     put.map_err(|e| format!("{e:#}"))
 }

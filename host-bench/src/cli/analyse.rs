@@ -1,8 +1,10 @@
 //! The analysis commands: `accuracy`, `replay` (`generate` is in `generate.rs`).
 
-use std::path::PathBuf;
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
-use anyhow::Context;
+use anyhow::{bail, Context};
+use host_bench::formats::atomic::{check_output, OutputDir, Staged};
 
 /// Most power-on seeds per accuracy case (each case replays every method once per seed).
 pub const MAX_ACCURACY_SEEDS: u64 = 1000;
@@ -13,6 +15,12 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
         (1..=MAX_ACCURACY_SEEDS).contains(&seeds),
         "--seeds must be 1 to {MAX_ACCURACY_SEEDS}, got {seeds}"
     );
+    // The folder and every name it may get, checked before the minutes of work: a name in
+    // the way was found only after them, with hundreds of the other files already written.
+    let made = match &out {
+        Some(dir) => Some(output_dir(dir, &accuracy_files(dir)?, &[])?),
+        None => None,
+    };
     let total = accuracy::cases().len() as u64 * seeds;
     // indicatif draws only when stderr is a terminal: CI logs stay clean.
     let bar = indicatif::ProgressBar::new(total).with_style(
@@ -25,10 +33,10 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
     })?;
     bar.finish_and_clear();
     if let Some(dir) = &out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("--out {}: {e}", dir.display()))?;
+        // Renamed into place together: a file that fails leaves none of the others.
+        let mut staged = Staged::default();
         for r in &results {
-            let mode = r.mode.replace('@', "-");
+            let stem = accuracy::file_stem(&r.case, &r.robot, &r.mode);
             // The tracks and the picture of seed 0; the figures cover every seed.
             let first: Vec<_> = r
                 .algorithms
@@ -36,18 +44,21 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
                 .filter_map(|m| m.runs.first().cloned())
                 .collect();
             for s in &first {
-                s.write_track(&dir.join(format!("{}-{}-{mode}-{}.csv", r.case, r.robot, s.name)))?;
+                let path = dir.join(format!("{stem}-{}.csv", s.name));
+                staged.write(&path, |f| s.write_track_to(f))?;
             }
             let title = format!(
                 "{} on {} ({}, seed 0): paths and error",
                 r.case, r.robot, r.mode
             );
-            host_bench::eval::report::write_case_svg(
-                &dir.join(format!("{}-{}-{mode}.svg", r.case, r.robot)),
-                &title,
-                &first,
-            )?;
+            let svg = host_bench::eval::report::case_svg(&title, &first)?;
+            let path = dir.join(format!("{stem}.svg"));
+            staged.write(&path, |f| Ok(f.write_all(svg.as_bytes())?))?;
         }
+        staged.commit()?;
+    }
+    if let Some(made) = made {
+        made.keep();
     }
     if json {
         println!("{}", serde_json::json!({ "cases": results }));
@@ -55,6 +66,56 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
         print!("{}", accuracy::table(&results));
     }
     Ok(())
+}
+
+/// Every file `accuracy --out DIR` may write: each case's picture and each method's track,
+/// in every mode (a method that cannot run there writes none).
+fn accuracy_files(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    use host_bench::eval::{accuracy, replay};
+    let mut files = Vec::new();
+    for case in accuracy::cases() {
+        let robot = accuracy::robot(&case)?;
+        for mode in accuracy::modes() {
+            let stem = accuracy::file_stem(case.trajectory, &robot.name, &mode.to_string());
+            files.push(dir.join(format!("{stem}.svg")));
+            for name in replay::ALGORITHMS {
+                files.push(dir.join(format!("{stem}-{name}.csv")));
+            }
+        }
+    }
+    Ok(files)
+}
+
+/// `dir`, made with its parents for `files`, each checked before any work: a regular file or
+/// a new name, and none of the run's `inputs` (what they are, and their paths; compared as
+/// canonical paths, like `generate`'s guard for its robot file). Dropped without `keep` (the
+/// run failed), the folders it made go again.
+fn output_dir(
+    dir: &Path,
+    files: &[PathBuf],
+    inputs: &[(&str, &Path)],
+) -> anyhow::Result<OutputDir> {
+    let flag = || format!("--out {}", dir.display());
+    for file in files {
+        let Ok(canonical) = file.canonicalize() else {
+            continue; // not there yet: no input of the run
+        };
+        for (what, input) in inputs {
+            if input.canonicalize().is_ok_and(|i| i == canonical) {
+                bail!(
+                    "{}: {} is {what} ({}): the run would write over its own input",
+                    flag(),
+                    file.display(),
+                    input.display()
+                );
+            }
+        }
+    }
+    let made = OutputDir::create(dir).with_context(flag)?;
+    for file in files {
+        check_output(file).with_context(flag)?;
+    }
+    Ok(made)
 }
 
 pub fn run_replay(
@@ -65,12 +126,17 @@ pub fn run_replay(
     out: Option<PathBuf>,
     json: bool,
 ) -> anyhow::Result<()> {
-    use host_bench::eval::replay;
+    use host_bench::eval::{board_poses, replay, replay_checks as checks};
     use host_bench::formats::{robot::Robot, tickstream};
-    let mode = counts_rate.map_or(replay::Mode::Timestamps, |rate_hz| replay::Mode::Counts {
-        rate_hz,
-    });
-    let stream = tickstream::read(&ticks)?;
+    // The flag before any file is read.
+    let mode = match counts_rate {
+        Some(rate_hz) => {
+            checks::check_counts_rate(rate_hz).context("--counts-rate")?;
+            replay::Mode::Counts { rate_hz }
+        }
+        None => replay::Mode::Timestamps,
+    };
+    let (stream, lines) = tickstream::read_with_lines(&ticks)?;
     let robot_path = match robot {
         Some(p) => p,
         None => stream.robot_path(&ticks).ok_or_else(|| {
@@ -81,29 +147,39 @@ pub fn run_replay(
         })?,
     };
     let robot = Robot::load(&robot_path)?;
+    // Every input is read and checked before any method runs or any file is written: the
+    // events against the robot (at their line), what there is to score, the board's poses.
+    checks::check_events(&robot, &stream)
+        .map_err(|e| anyhow::anyhow!("{}:{}: {}", ticks.display(), lines.of(e.index), e.message))?;
+    checks::check_scorable(&stream, mode).with_context(|| ticks.display().to_string())?;
+    // A recording's own poses, when `record` wrote them beside the stream.
+    let board_file = board_poses::beside(&ticks);
+    let board = match &board_file {
+        Some(f) => board_poses::score(f, &stream)?,
+        None => None,
+    };
     let names: Vec<&str> = if algorithm == "all" {
         replay::ALGORITHMS.to_vec()
     } else {
         vec![algorithm.as_str()]
     };
+    let made = match &out {
+        Some(dir) => {
+            let files: Vec<PathBuf> = names.iter().map(|n| dir.join(format!("{n}.csv"))).collect();
+            let mut inputs = vec![
+                ("the tick stream", ticks.as_path()),
+                ("the robot file", robot_path.as_path()),
+            ];
+            inputs.extend(board_file.as_deref().map(|b| ("the board poses", b)));
+            Some(output_dir(dir, &files, &inputs)?)
+        }
+        None => None,
+    };
     // A named algorithm must run; with `all`, the ones that cannot apply to this robot or
     // mode (e.g. `timing` on sampled counts) are skipped with the reason.
     let mut scores = Vec::new();
     let mut skipped = Vec::new();
-    // Every track's place checked before the first is written (a folder in the way of the
-    // third left the first two behind); a folder made for them goes again if the run fails.
-    let made = match &out {
-        Some(dir) => {
-            let made = host_bench::formats::atomic::OutputDir::create(dir)
-                .with_context(|| format!("--out {}", dir.display()))?;
-            for name in &names {
-                host_bench::formats::atomic::check_output(&dir.join(format!("{name}.csv")))
-                    .with_context(|| format!("--out {}", dir.display()))?;
-            }
-            Some(made)
-        }
-        None => None,
-    };
+    let mut staged = Staged::default();
     for name in &names {
         let run = if out.is_some() {
             replay::replay
@@ -112,10 +188,12 @@ pub fn run_replay(
         };
         match run(&robot, &stream, name, mode) {
             Ok(mut s) => {
-                // Each track is written (with --out) and let go at once: four of them for a
-                // long stream would be most of the memory.
+                // Each track is written to its temporary file and let go at once (four of them
+                // for a long stream would be most of the memory); all are renamed into place
+                // at the end, so a run that fails replaces none.
                 if let Some(dir) = &out {
-                    s.write_track(&dir.join(format!("{}.csv", s.name)))?;
+                    let path = dir.join(format!("{}.csv", s.name));
+                    staged.write(&path, |f| s.write_track_to(f))?;
                 }
                 s.track = Vec::new();
                 scores.push(s)
@@ -141,11 +219,10 @@ pub fn run_replay(
         };
         anyhow::bail!("{}: no estimator can run: {why}", ticks.display());
     }
-    // A recording's own poses, when `record` wrote them beside the stream.
-    let board = match host_bench::eval::board_poses::beside(&ticks) {
-        Some(f) => host_bench::eval::board_poses::score(&f, &stream)?,
-        None => None,
-    };
+    staged.commit()?;
+    if let Some(made) = made {
+        made.keep();
+    }
     if json {
         println!(
             "{}",
@@ -187,9 +264,6 @@ pub fn run_replay(
                 b.file
             );
         }
-    }
-    if let Some(made) = made {
-        made.keep();
     }
     Ok(())
 }

@@ -7,6 +7,7 @@ pub mod board_poses;
 pub mod envelope;
 pub mod pursuit_sweep;
 pub mod replay;
+pub mod replay_checks;
 pub mod report;
 
 /// A path in the field, metres (for plots).

@@ -25,6 +25,7 @@ use robot_math::wheelset::WheelSolver;
 use robot_math::Pose2;
 use serde::Serialize;
 
+use super::replay_checks::{check_counts_rate, check_event, check_scorable};
 use crate::formats::robot::Robot;
 use crate::formats::tickstream::{Event, TickStream};
 
@@ -45,6 +46,16 @@ pub enum Mode {
     Timestamps,
     /// Whole counts sampled at a fixed rate.
     Counts { rate_hz: f64 },
+}
+
+impl Mode {
+    /// With counts, the sampling period in ns (at least 1).
+    pub fn period_ns(self) -> Option<u64> {
+        match self {
+            Mode::Counts { rate_hz } => Some(((1e9 / rate_hz).round() as u64).max(1)),
+            Mode::Timestamps => None,
+        }
+    }
 }
 
 impl std::fmt::Display for Mode {
@@ -77,8 +88,13 @@ pub struct Score {
 impl Score {
     /// Write the track as CSV (t, truth, estimate, position error), atomically.
     pub fn write_track(&self, path: &std::path::Path) -> Result<()> {
-        crate::formats::atomic::write_atomically(path, |file| {
-            let mut w = csv::Writer::from_writer(file);
+        crate::formats::atomic::write_atomically(path, |file| self.write_track_to(file))
+    }
+
+    /// The track as CSV into `out` ([`write_track`](Self::write_track)'s content).
+    pub fn write_track_to(&self, out: impl std::io::Write) -> Result<()> {
+        {
+            let mut w = csv::Writer::from_writer(out);
             w.write_record([
                 "t_s",
                 "true_x_m",
@@ -106,7 +122,7 @@ impl Score {
             }
             w.flush()?;
             Ok(())
-        })
+        }
     }
 }
 
@@ -238,6 +254,7 @@ fn replay_tracked(
     mode: Mode,
     keep_track: bool,
 ) -> Result<Score> {
+    check_scorable(stream, mode)?;
     let (mut estimator, n) = estimator(robot, stream, algorithm, mode)?;
     let est = estimator.as_mut();
     let mut score = Scorer {
@@ -256,9 +273,7 @@ fn estimator(
     mode: Mode,
 ) -> Result<(Box<dyn Estimator>, usize)> {
     if let Mode::Counts { rate_hz } = mode {
-        if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1e9) {
-            bail!("counts sampling rate must be a positive number of Hz up to 1e9, got {rate_hz}");
-        }
+        check_counts_rate(rate_hz)?;
     }
     let layout = robot.odometry_layout()?;
     let n = layout.encoders();
@@ -362,12 +377,11 @@ fn drive(
     let abs_index = robot.odometry_abs_index();
     let t0 = stream.events.first().map_or(0, |e| e.t_ns());
     let mut wheels = [TickTracker::starting(0, t0); MAX_ENCODERS];
-    let period_ns = match mode {
-        Mode::Counts { rate_hz } => Some(((1e9 / rate_hz).round() as u64).max(1)),
-        Mode::Timestamps => None,
-    };
+    let period_ns = mode.period_ns();
     let interpolate = period_ns.is_none();
-    let mut next_sample = period_ns.map(|p| stream.events.first().map_or(0, |e| e.t_ns()) + p);
+    // With counts, the next fixed-rate sample; `None` once it would be at 2^64 ns or later,
+    // after any event can be.
+    let mut next_sample = period_ns.and_then(|p| t0.checked_add(p));
     let mut pose = None;
     // A reading (a count or the absolute encoder) changed since the last update.
     let mut changed = true;
@@ -377,56 +391,33 @@ fn drive(
     while i < events.len() {
         let t = events[i].t_ns();
         // Fixed-rate samples strictly before this instant see the counts as they were.
-        if let (Some(p), Some(next)) = (period_ns, next_sample.as_mut()) {
-            while *next < t {
+        if let Some(p) = period_ns {
+            while let Some(next) = next_sample.filter(|&next| next < t) {
                 // Samples that would see the same readings as the last update are jumped in
                 // one step: a gap of years between two ticks costs nothing.
                 let skip = if changed || every {
-                    pose = Some(est.update(*next, &wheels, false));
+                    pose = Some(est.update(next, &wheels, false));
                     changed = false;
                     Some(p)
                 } else {
-                    (t - *next).div_ceil(p).checked_mul(p)
+                    (t - next).div_ceil(p).checked_mul(p)
                 };
-                *next = skip
-                    .and_then(|skip| next.checked_add(skip))
-                    .with_context(|| format!("t = {t} ns: the sampling clock passes 2^64 ns"))?;
+                next_sample = skip.and_then(|skip| next.checked_add(skip));
             }
         }
         // Everything at one instant first: ticks together, then the truth at that instant.
         let mut j = i;
         let mut ticked = false;
         while j < events.len() && events[j].t_ns() == t {
+            check_event(robot, n, &events[j]).map_err(anyhow::Error::msg)?;
             if let Event::Tick { encoder, step, .. } = events[j] {
                 let e = encoder as usize;
-                if e >= n {
-                    bail!(
-                        "tick for encoder {e} at t = {t} ns, but robot {} has {n} encoders",
-                        robot.name
-                    );
-                }
                 robot_math::ticks::tick_wheel(&mut wheels[..n], e, t, step);
                 est.tick(t, e, step);
                 ticked = true;
                 changed = true;
             }
             if let Event::Abs { encoder, code, .. } = events[j] {
-                let Some(a) = robot.absolute_encoders.get(encoder as usize) else {
-                    bail!(
-                        "abs reading of absolute encoder {encoder} at t = {t} ns, but robot {} \
-                         has {} absolute encoders",
-                        robot.name,
-                        robot.absolute_encoders.len()
-                    );
-                };
-                if u64::from(code) >> a.bits != 0 {
-                    bail!(
-                        "abs reading {code} of absolute encoder {encoder} ({}) at t = {t} ns \
-                         does not fit its {} bits",
-                        a.name,
-                        a.bits
-                    );
-                }
                 if Some(encoder as usize) == abs_index {
                     est.abs(code as u16);
                     changed = true;
@@ -437,21 +428,16 @@ fn drive(
         let has_truth = events[i..j]
             .iter()
             .any(|e| matches!(e, Event::Truth { .. }));
-        if ticked && score.last_truth.is_some() {
-            score.ticked_since_truth = true;
-        }
-        let due = match (period_ns, next_sample.as_mut()) {
+        let due = match period_ns {
             // A regular sample at this very instant, or a scoring one for a truth row.
-            (Some(p), Some(next)) => {
-                let regular = *next == t;
+            Some(p) => {
+                let regular = next_sample == Some(t);
                 if regular {
-                    *next = next.checked_add(p).with_context(|| {
-                        format!("t = {t} ns: the sampling clock passes 2^64 ns")
-                    })?;
+                    next_sample = t.checked_add(p);
                 }
                 (regular && (changed || every)) || has_truth
             }
-            _ => ticked || has_truth,
+            None => ticked || has_truth,
         };
         if due {
             pose = Some(est.update(t, &wheels, interpolate));
@@ -474,13 +460,11 @@ fn drive(
     Ok(())
 }
 
+/// The scores over the truth rows. What makes a stream scorable at all (two truth rows, ticks
+/// and motion between them) is checked before, by [`check_scorable`].
 #[derive(Default)]
 struct Scorer {
     last_truth: Option<Pose2>,
-    /// A wheel ticked since the last truth row, and a truth row came after a tick that came
-    /// after the first: the scored stretch saw some motion.
-    ticked_since_truth: bool,
-    scored_motion: bool,
     path: f64,
     max: f64,
     last: Option<(Pose2, Pose2)>,
@@ -491,7 +475,6 @@ struct Scorer {
 
 impl Scorer {
     fn add(&mut self, t_ns: u64, estimate: Pose2, truth: Pose2) {
-        self.scored_motion |= std::mem::take(&mut self.ticked_since_truth);
         if let Some(prev) = self.last_truth {
             self.path += prev.distance_to(truth);
         }
@@ -509,17 +492,6 @@ impl Scorer {
         let (estimate, truth) = self
             .last
             .context("the stream has no truth rows: nothing to score against")?;
-        // The first truth row is where the estimators start: alone it scores nothing.
-        if self.errors.len() < 2 {
-            bail!("the stream has one truth row, the start pose: nothing to score against");
-        }
-        // Truth rows only before the ticks (or all at one end) score no motion at all.
-        if !self.scored_motion {
-            bail!(
-                "no encoder tick between the first truth row and the last: the motion is not \
-                 scored (truth rows must come during the ticks, not only before or after them)"
-            );
-        }
         let truth_rows = self.errors.len();
         let errors = &mut self.errors;
         errors.sort_by(f64::total_cmp);

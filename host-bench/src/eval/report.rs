@@ -11,7 +11,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::formats::atomic::{stage, write_atomically, Staged};
+use crate::formats::atomic::{write_atomically, Staged};
 use crate::sim::emulator::{self, LogRow, Run, Scenario, Summary};
 
 /// The short summary `emulate` prints.
@@ -171,7 +171,8 @@ pub const MAX_CSV_ROWS: u64 = 1_000_000;
 /// check failed, Ctrl-C), none is, no existing one is replaced, and a folder it made goes.
 pub struct EmulateFiles {
     // Dropped in this order: the temporary files first, then the folder (if it is empty).
-    staged: Vec<(PathBuf, Staged)>,
+    staged: Staged,
+    paths: Vec<PathBuf>,
     json_path: PathBuf,
     dir: crate::formats::atomic::OutputDir,
 }
@@ -179,18 +180,15 @@ pub struct EmulateFiles {
 impl EmulateFiles {
     /// Writes `summary.json` from `summary` (the run's, with what was added since: the fault
     /// check) and puts the three files in place.
-    pub fn commit(self, summary: &emulator::Summary) -> Result<Vec<PathBuf>> {
-        let (_, json) = stage(&self.json_path, |file| {
+    pub fn commit(mut self, summary: &emulator::Summary) -> Result<Vec<PathBuf>> {
+        self.staged.write(&self.json_path, |file| {
             serde_json::to_writer_pretty(&mut *file, summary)?;
             Ok(file.write_all(b"\n")?)
         })?;
-        let mut written = Vec::new();
-        for (path, file) in self.staged.into_iter().chain([(self.json_path, json)]) {
-            file.commit()?;
-            written.push(path);
-        }
+        self.staged.commit()?;
         self.dir.keep();
-        Ok(written)
+        self.paths.push(self.json_path);
+        Ok(self.paths)
     }
 }
 
@@ -217,29 +215,32 @@ pub fn emulate_into(
         crate::formats::atomic::check_output(p)
             .with_context(|| format!("--out {}", dir.display()))?;
     }
-    let (run, csv) = stage_run_csv(scenario, opts, &csv_path)?;
+    let mut staged = Staged::default();
+    let run = stage_run_csv(scenario, opts, &csv_path, &mut staged)?;
     let mut text = String::new();
     draw_run(
         &run,
         SVGBackend::with_string(&mut text, (800, 1100)).into_drawing_area(),
     )?;
-    let (_, svg) = stage(&svg_path, |file| Ok(file.write_all(text.as_bytes())?))?;
+    staged.write(&svg_path, |file| Ok(file.write_all(text.as_bytes())?))?;
     Ok((
         run,
         EmulateFiles {
-            dir: out,
-            staged: vec![(csv_path, csv), (svg_path, svg)],
+            staged,
+            paths: vec![csv_path, svg_path],
             json_path,
+            dir: out,
         },
     ))
 }
 
-/// The run, its log streamed into `csv_path` (staged).
+/// The run, its log streamed into `csv_path` (staged in `staged`).
 fn stage_run_csv(
     scenario: &Scenario,
     opts: &emulator::Options,
     csv_path: &Path,
-) -> Result<(Run, Staged)> {
+    staged: &mut Staged,
+) -> Result<Run> {
     let mut plotted = Thinned::new(MAX_PLOTTED_ROWS);
     let rows = (opts.duration / opts.log_period).ceil().max(1.0);
     let every = (rows / MAX_CSV_ROWS as f64).ceil().max(1.0) as u64;
@@ -247,10 +248,11 @@ fn stage_run_csv(
     // The run's own failure (a session the master refused, ...) is reported as itself, not as
     // a file that could not be written.
     let mut run_failed = None;
-    let staged = stage(csv_path, |file| {
+    let mut summary = None;
+    let written = staged.write(csv_path, |file| {
         let mut w = csv::Writer::from_writer(std::io::BufWriter::new(file));
         let mut write_failed = false;
-        let summary = emulator::run_logged(
+        let run = emulator::run_logged(
             scenario,
             opts,
             Some(&mut |row| {
@@ -264,8 +266,8 @@ fn stage_run_csv(
                 Ok(())
             }),
         );
-        let summary = match summary {
-            Ok(s) => s,
+        match run {
+            Ok(s) => summary = Some(s),
             Err(e) if write_failed => return Err(e),
             Err(e) => {
                 let why = format!("{e:#}");
@@ -274,20 +276,17 @@ fn stage_run_csv(
             }
         };
         w.flush()?;
-        Ok(summary)
+        Ok(())
     });
-    let (summary, csv) = match (staged, run_failed) {
-        (Ok(s), _) => s,
-        (Err(_), Some(run_error)) => return Err(run_error),
-        (Err(e), None) => return Err(e),
-    };
-    Ok((
-        Run {
+    match (written, run_failed, summary) {
+        (Ok(()), _, Some(summary)) => Ok(Run {
             summary,
             log: plotted.rows,
-        },
-        csv,
-    ))
+        }),
+        (Err(_), Some(run_error), _) => Err(run_error),
+        (Err(e), None, _) => Err(e),
+        (Ok(()), _, None) => anyhow::bail!("the run ended without a summary"),
+    }
 }
 
 /// Every `stride`-th row of a stream, the stride doubling whenever `2 × cap` rows are kept:
@@ -330,9 +329,15 @@ fn write_svg(
     path: &Path,
     draw: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
 ) -> Result<()> {
+    let text = svg(draw)?;
+    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
+}
+
+/// An 800 x 1100 SVG drawn by `draw`, as text.
+fn svg(draw: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>) -> Result<String> {
     let mut text = String::new();
     draw(SVGBackend::with_string(&mut text, (800, 1100)).into_drawing_area())?;
-    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
+    Ok(text)
 }
 
 /// The run's plot: the paths on top, the position error against time below.
@@ -500,6 +505,11 @@ pub fn write_case_svg(
     scores: &[crate::eval::replay::Score],
 ) -> Result<()> {
     write_svg(path, |root| draw_case(root, title, scores))
+}
+
+/// [`write_case_svg`]'s picture, as text (for files written together, `atomic::Staged`).
+pub fn case_svg(title: &str, scores: &[crate::eval::replay::Score]) -> Result<String> {
+    svg(|root| draw_case(root, title, scores))
 }
 
 const METHOD_COLORS: [RGBColor; 4] = [

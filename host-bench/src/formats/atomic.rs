@@ -5,7 +5,9 @@
 //! (so the final rename never crosses a file system), flushed to disk, and only then renamed
 //! over the target. If the writer fails or panics, the temporary file is deleted (by
 //! [`tempfile::NamedTempFile`]'s drop) and an existing target is left untouched, so a reader
-//! never sees a half-written file and nothing half-written is left behind.
+//! never sees a half-written file and nothing half-written is left behind. A command that
+//! writes several files stages them ([`Staged`]) and renames them together at the end, so a
+//! run that fails part way replaces none of them.
 //!
 //! A process stopped by a signal runs no drops, so the temporary files in the making are also
 //! listed here, and [`remove_partials_on_signals`] (installed by `main`) deletes them on
@@ -199,53 +201,30 @@ pub fn write_atomically<T>(
     path: &Path,
     write: impl FnOnce(&mut File) -> anyhow::Result<T>,
 ) -> anyhow::Result<T> {
-    let (value, staged) = stage(path, write)?;
-    staged.commit()?;
+    let (tmp, _listed, value) = write_temporary(path, write)?;
+    rename(tmp, path)?;
     Ok(value)
 }
 
-/// A file written whole under its temporary name and not yet in place: [`commit`](Self::commit)
-/// renames it over its target; dropped (or on a signal), it is deleted. For a run that writes
-/// several files and must put all of them in place or none (`emulate --out`).
-pub struct Staged {
-    path: PathBuf,
-    // Declared before `_listed`, so dropped first: the file is gone before it is unlisted.
-    tmp: tempfile::NamedTempFile,
-    _listed: Listed,
+/// [`write_atomically`] that will not replace a file: one made at `path` meanwhile (by another
+/// process) is left alone and this fails (`init-bench` without `--force`).
+pub fn write_new(
+    path: &Path,
+    write: impl FnOnce(&mut File) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let (tmp, _listed, ()) = write_temporary(path, write)?;
+    tmp.persist_noclobber(path).map_err(|e| {
+        anyhow::Error::new(e.error)
+            .context(format!("cannot write {} (it exists now)", path.display()))
+    })
 }
 
-impl Staged {
-    /// Puts the file in place unless something is there by now (`init-bench` without
-    /// `--force`).
-    pub fn commit_new(self) -> anyhow::Result<()> {
-        let Staged { path, tmp, _listed } = self;
-        tmp.persist_noclobber(&path).map_err(|e| {
-            anyhow::Error::new(e.error)
-                .context(format!("cannot write {} (it exists now)", path.display()))
-        })?;
-        Ok(())
-    }
-
-    /// Puts the file in place (a rename in its own folder).
-    pub fn commit(self) -> anyhow::Result<()> {
-        let Staged { path, tmp, _listed } = self;
-        tmp.persist(&path).map_err(|e| {
-            anyhow::Error::new(e.error).context(format!(
-                "cannot rename {} to {}",
-                e.file.path().display(),
-                path.display()
-            ))
-        })?;
-        Ok(())
-    }
-}
-
-/// [`write_atomically`] up to the rename: `path` is checked, written under a temporary name
-/// and synced; the returned [`Staged`] puts it in place.
-pub fn stage<T>(
+/// `write` into a synced temporary file beside `path`, listed for the signal handler; the
+/// caller renames it (or drops it, which deletes it, then the listing).
+fn write_temporary<T>(
     path: &Path,
     write: impl FnOnce(&mut File) -> anyhow::Result<T>,
-) -> anyhow::Result<(T, Staged)> {
+) -> anyhow::Result<(tempfile::TempPath, Listed, T)> {
     check_output(path)?;
     let folder = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -283,14 +262,51 @@ pub fn stage<T>(
             Ok(value)
         })
         .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok((
-        value,
-        Staged {
-            path: path.to_path_buf(),
-            tmp,
-            _listed: listed,
-        },
-    ))
+    // Closed: a run staging hundreds of files holds no descriptor for each.
+    Ok((tmp.into_temp_path(), listed, value))
+}
+
+fn rename(tmp: tempfile::TempPath, path: &Path) -> anyhow::Result<()> {
+    tmp.persist(path).map_err(|e| {
+        anyhow::Error::new(e.error).context(format!(
+            "cannot rename {} to {}",
+            e.path.display(),
+            path.display()
+        ))
+    })
+}
+
+/// Several files written whole now and renamed into place together by [`commit`]: a run that
+/// writes more than one file, and fails (or is stopped) part way, replaces none of them. Each
+/// is written to its temporary file as it is ready (no file's content waits in memory for the
+/// others); dropped without `commit`, they are deleted.
+///
+/// [`commit`]: Staged::commit
+#[derive(Default)]
+pub struct Staged {
+    files: Vec<(tempfile::TempPath, Listed, PathBuf)>,
+}
+
+impl Staged {
+    /// Writes `path`'s content through `write` to its temporary file, as [`write_atomically`]
+    /// does, without the rename.
+    pub fn write(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&mut File) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        let (tmp, listed, ()) = write_temporary(path, write)?;
+        self.files.push((tmp, listed, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Renames every file into place, in the order written.
+    pub fn commit(self) -> anyhow::Result<()> {
+        for (tmp, _listed, path) in self.files {
+            rename(tmp, &path)?;
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -384,5 +400,27 @@ mod tests {
         File::create(&plain).unwrap();
         let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode(&path), mode(&plain));
+    }
+
+    #[test]
+    fn staged_files_appear_only_on_commit_and_are_gone_if_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
+        std::fs::write(&a, "old\n").unwrap();
+        let mut staged = Staged::default();
+        staged.write(&a, |f| Ok(f.write_all(b"new a\n")?)).unwrap();
+        staged.write(&b, |f| Ok(f.write_all(b"new b\n")?)).unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old\n");
+        assert_eq!(entries(dir.path()).len(), 3, "{:?}", entries(dir.path()));
+        drop(staged);
+        assert_eq!(entries(dir.path()), ["a.csv"]);
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old\n");
+
+        let mut staged = Staged::default();
+        staged.write(&a, |f| Ok(f.write_all(b"new a\n")?)).unwrap();
+        staged.write(&b, |f| Ok(f.write_all(b"new b\n")?)).unwrap();
+        staged.commit().unwrap();
+        assert_eq!(entries(dir.path()), ["a.csv", "b.csv"]);
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b\n");
     }
 }

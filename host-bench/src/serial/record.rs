@@ -188,7 +188,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         }
         // A stream is read back whole into memory: a recording stops at what a reader takes.
         let most = crate::formats::tickstream::MAX_EVENTS;
-        if c.rows.len() >= most || c.board.len() >= most {
+        if c.rows.len() >= most || c.board.len() >= crate::eval::board_poses::MAX_ROWS {
             stopped_by = "size limit";
             break;
         }

@@ -176,6 +176,22 @@ fn robot_text(file: &str) -> Option<&'static str> {
     })
 }
 
+/// The built-in robot `case` runs on.
+pub fn robot(case: &Case) -> Result<Robot> {
+    let text =
+        robot_text(case.robot).with_context(|| format!("no built-in robot {}", case.robot))?;
+    Ok(Robot::parse(
+        text,
+        Path::new(&format!("robots/{}", case.robot)),
+    )?)
+}
+
+/// What `accuracy --out` names a case's files in one mode, before the method and extension:
+/// `CASE-ROBOT-MODE`, the mode's `@` as `-` (`rest-then-arcs-seed001-counts-10000Hz`).
+pub fn file_stem(case: &str, robot: &str, mode: &str) -> String {
+    format!("{case}-{robot}-{}", mode.replace('@', "-"))
+}
+
 /// One case in one mode, over every seed.
 #[derive(Clone, Debug, Serialize)]
 pub struct CaseResult {
@@ -251,9 +267,7 @@ pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResu
     let cases = cases();
     let mut loaded = Vec::new();
     for case in &cases {
-        let text =
-            robot_text(case.robot).with_context(|| format!("no built-in robot {}", case.robot))?;
-        let robot = Robot::parse(text, Path::new(&format!("robots/{}", case.robot)))?;
+        let robot = robot(case)?;
         trajectory::build(case.trajectory)
             .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
         loaded.push(robot);

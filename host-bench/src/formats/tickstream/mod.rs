@@ -19,10 +19,12 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use event::Event;
-pub use read::{read, read_from};
+pub use lines::Lines;
+pub use read::{read, read_from, read_with_lines};
 pub use write::write;
 
 mod event;
+mod lines;
 mod read;
 mod row;
 #[cfg(test)]
@@ -59,10 +61,11 @@ pub const MAX_TRUTH_COORDINATE_M: f64 = 1e6;
 /// resolves 10^-10 rad, and the host's trigonometry stays within a few ulp.
 pub const MAX_TRUTH_HEADING_RAD: f64 = 1e6;
 
-/// Most events (rows) a stream may hold: they are kept in memory (40 bytes each), so this
-/// bounds a replay to a few hundred MB whatever a gzip file expands to. `generate` writes at
-/// most 2·10^6 ticks plus 2·10^6 rows of each other kind.
-pub const MAX_EVENTS: usize = 6_000_000;
+/// Most events (rows) a stream may hold: 2^22, 4 194 304. They are kept in memory (40 bytes
+/// each), so reading one row more is refused at 160 MiB of events whatever a gzip file expands
+/// to (at 6·10^6 the refusal itself took 240 MB); the events vector's capacity doubles to
+/// exactly this. `generate` writes at most 2·10^6 ticks plus 2·10^6 truth and absolute rows.
+pub const MAX_EVENTS: usize = 1 << 22;
 
 /// Comment text kept from one stream, bytes. Comments are written back when a stream is
 /// rewritten, so they are kept in memory; past this they are counted and dropped (a 7 MB

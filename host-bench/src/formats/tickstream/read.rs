@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::row::{parse_header, parse_row, shown, split_fields, Header};
 use super::{
-    is_gz_name, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
+    is_gz_name, Lines, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
     MAX_KEPT_COMMENTS, MAX_KEPT_COMMENT_BYTES, MAX_LINE_BYTES, MAX_OTHER_LINES, READ_BUFFER_BYTES,
     UTF8_BOM,
 };
@@ -14,6 +14,11 @@ use flate2::read::MultiGzDecoder;
 /// Reads a tick stream file; gzip-compressed if its name ends in `.gz` or its data starts with
 /// the gzip magic bytes.
 pub fn read(path: &Path) -> Result<TickStream, ReadError> {
+    read_with_lines(path).map(|(stream, _)| stream)
+}
+
+/// [`read`], and where each event was in the file, for errors found after reading.
+pub fn read_with_lines(path: &Path) -> Result<(TickStream, Lines), ReadError> {
     let file = crate::formats::bounded_file::open_stream(path).map_err(|e| ReadError {
         path: path.to_path_buf(),
         line: None,
@@ -37,9 +42,9 @@ pub fn read(path: &Path) -> Result<TickStream, ReadError> {
     }
     if gzip_data {
         let decoder = MultiGzDecoder::new(input);
-        parse(BufReader::with_capacity(READ_BUFFER_BYTES, decoder), path)
+        parse_with_lines(BufReader::with_capacity(READ_BUFFER_BYTES, decoder), path)
     } else {
-        parse(input, path)
+        parse_with_lines(input, path)
     }
 }
 
@@ -52,15 +57,16 @@ pub fn read_from(reader: impl Read, name_for_errors: &Path) -> Result<TickStream
         line: None,
         message: format!("cannot read: {e}"),
     })?;
-    if head.starts_with(&GZIP_MAGIC) {
+    let parsed = if head.starts_with(&GZIP_MAGIC) {
         let decoder = MultiGzDecoder::new(input);
-        parse(
+        parse_with_lines(
             BufReader::with_capacity(READ_BUFFER_BYTES, decoder),
             name_for_errors,
         )
     } else {
-        parse(input, name_for_errors)
-    }
+        parse_with_lines(input, name_for_errors)
+    };
+    parsed.map(|(stream, _)| stream)
 }
 
 /// The line-by-line parser's state.
@@ -79,9 +85,46 @@ impl Parser<'_> {
     }
 }
 
-fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> {
+/// Counts a comment or blank line: past [`MAX_OTHER_LINES`] the file is refused (a small gzip of
+/// them would keep the reader busy for minutes). After the header, notes where it fell.
+fn other_line(
+    p: &Parser<'_>,
+    count: &mut u64,
+    lines: &mut Lines,
+    events: usize,
+    header: bool,
+) -> Result<(), ReadError> {
+    *count += 1;
+    if *count > MAX_OTHER_LINES {
+        return Err(p.error(format!(
+            "more than {MAX_OTHER_LINES} comment or blank lines (is this a tick stream?)"
+        )));
+    }
+    if header {
+        // At most MAX_OTHER_LINES of these; events fit a u32 (MAX_EVENTS is 2^22).
+        lines.gaps.push(events as u32);
+    }
+    Ok(())
+}
+
+/// A carriage return that does not end the line or precede its line feed: the file's line
+/// endings are CR alone (classic Mac OS), which makes all of it one line.
+fn lone_cr(line: &[u8]) -> bool {
+    let body = line.strip_suffix(b"\n").unwrap_or(line);
+    let body = body.strip_suffix(b"\r").unwrap_or(body);
+    body.contains(&b'\r')
+}
+
+const CR_ONLY: &str = "the line endings are CR alone (classic Mac OS): not supported; save the \
+                       file with LF or CR LF line endings";
+
+pub(super) fn parse_with_lines(
+    mut input: impl BufRead,
+    path: &Path,
+) -> Result<(TickStream, Lines), ReadError> {
     let mut p = Parser { path, line_no: 0 };
     let mut stream = TickStream::default();
+    let mut lines = Lines::default();
     let mut line: Vec<u8> = Vec::with_capacity(256);
     let mut fields: Vec<(usize, usize)> = Vec::with_capacity(16);
     let mut header: Option<Header> = None;
@@ -109,9 +152,12 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
         if line[end - 1] == b'\n' {
             end -= 1;
         } else if end > MAX_LINE_BYTES {
-            return Err(p.error(format!(
-                "line is longer than {MAX_LINE_BYTES} bytes (is this a tick stream?)"
-            )));
+            // A file with CR line endings alone reads as one long line.
+            return Err(p.error(if lone_cr(&line) {
+                CR_ONLY.to_string()
+            } else {
+                format!("line is longer than {MAX_LINE_BYTES} bytes (is this a tick stream?)")
+            }));
         }
         if end > 0 && line[end - 1] == b'\r' {
             end -= 1;
@@ -126,6 +172,9 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
                 "missing magic line: the data looks gzip-compressed but was read as plain text",
             ));
         }
+        if p.line_no == 1 && lone_cr(bytes) {
+            return Err(p.error(CR_ONLY));
+        }
         let text = std::str::from_utf8(bytes).map_err(|e| {
             p.error(format!(
                 "not valid UTF-8 (bad byte at column {})",
@@ -139,20 +188,9 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
         }
 
         let trimmed = text.trim_start();
-        let blank_cells = || {
-            trimmed
-                .bytes()
-                .all(|b| b == b',' || b.is_ascii_whitespace())
-        };
-        if trimmed.starts_with('#') || blank_cells() {
-            other_lines += 1;
-            if other_lines > MAX_OTHER_LINES {
-                return Err(p.error(format!(
-                    "more than {MAX_OTHER_LINES} comment or blank lines (is this a tick stream?)"
-                )));
-            }
-        }
+        let (events, after_header) = (stream.events.len(), header.is_some());
         if let Some(comment) = trimmed.strip_prefix('#') {
+            other_line(&p, &mut other_lines, &mut lines, events, after_header)?;
             // Spreadsheets pad every row to the same number of cells: ignore trailing commas.
             let comment = comment.trim_end_matches(|c: char| c == ',' || c.is_whitespace());
             if let Some(robot) = comment.trim_start().strip_prefix("robot:") {
@@ -182,15 +220,22 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
             continue;
         }
         if trimmed.is_empty() {
+            other_line(&p, &mut other_lines, &mut lines, events, after_header)?;
             continue;
         }
 
         split_fields(text, &mut fields).map_err(|m| p.error(m))?;
+        // A row of empty cells, as spreadsheets write for a blank row: `,,,` or `"",""` (the
+        // quoted ones too, or a gzip of them would take minutes to refuse).
         if fields.iter().all(|&(a, b)| text[a..b].trim().is_empty()) {
-            continue; // a row of empty cells, as spreadsheets write for a blank row
+            other_line(&p, &mut other_lines, &mut lines, events, after_header)?;
+            continue;
         }
         match &header {
-            None => header = Some(parse_header(&p, text, &fields)?),
+            None => {
+                header = Some(parse_header(&p, text, &fields)?);
+                lines.header = p.line_no;
+            }
             Some(h) => {
                 let event = parse_row(&p, h, text, &fields)?;
                 let t = event.t_ns();
@@ -237,7 +282,7 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
              {MAX_KEPT_COMMENTS} comment lines and {MAX_KEPT_COMMENT_BYTES} bytes of them)"
         ));
     }
-    Ok(stream)
+    Ok((stream, lines))
 }
 
 fn check_magic(p: &Parser<'_>, text: &str) -> Result<(), ReadError> {
