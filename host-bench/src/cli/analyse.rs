@@ -147,6 +147,10 @@ pub fn run_replay(
         })?,
     };
     let robot = Robot::load(&robot_path)?;
+    // A robot the odometry cannot run (5 encoders: `generate` takes it), named by its file.
+    robot
+        .odometry_layout()
+        .with_context(|| robot_path.display().to_string())?;
     // Every input is read and checked before any method runs or any file is written: the
     // events against the robot (at their line), what there is to score, the board's poses.
     checks::check_events(&robot, &stream)

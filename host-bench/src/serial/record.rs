@@ -99,7 +99,9 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
     let (robot_text, robot_name, has_abs) = match req.robot {
         Some(p) => {
             let robot = crate::formats::robot::Robot::load(p)?;
-            let layout = robot.odometry_layout()?;
+            let layout = robot
+                .odometry_layout()
+                .with_context(|| format!("--robot {}", p.display()))?;
             crate::sim::plant::slave_board_reads(&layout)
                 .map_err(|e| anyhow::anyhow!("--robot {}: {e}", p.display()))?;
             session::load_robot(link, &layout)?;
