@@ -275,17 +275,9 @@ fn estimator(
             _ => None,
         })
         .unwrap_or_default();
-    let abs_index = robot.odometry_abs_index();
     let t0 = stream.events.first().map_or(0, |e| e.t_ns());
     // The absolute encoder as it reads at the start (the stream's first reading of it there).
-    let abs0 = stream.events.iter().find_map(|e| match *e {
-        Event::Abs {
-            t_ns,
-            encoder,
-            code,
-        } if t_ns == t0 && Some(encoder as usize) == abs_index => Some(code as u16),
-        _ => None,
-    });
+    let abs0 = robot.start_reading(&stream.events).map(|(_, code)| code);
     let estimator: Box<dyn Estimator> = if algorithm == ORACLE {
         if robot.carriage.is_some() {
             bail!(
@@ -359,7 +351,6 @@ fn drive(
     samples: Samples,
     score: &mut Scorer,
 ) -> Result<()> {
-    let abs_index = robot.odometry_abs_index();
     let t0 = stream.events.first().map_or(0, |e| e.t_ns());
     let mut wheels = [TickTracker::starting(0, t0); MAX_ENCODERS];
     let period_ns = match mode {
@@ -411,24 +402,8 @@ fn drive(
                 changed = true;
             }
             if let Event::Abs { encoder, code, .. } = events[j] {
-                let Some(a) = robot.absolute_encoders.get(encoder as usize) else {
-                    bail!(
-                        "abs reading of absolute encoder {encoder} at t = {t} ns, but robot {} \
-                         has {} absolute encoders",
-                        robot.name,
-                        robot.absolute_encoders.len()
-                    );
-                };
-                if u64::from(code) >> a.bits != 0 {
-                    bail!(
-                        "abs reading {code} of absolute encoder {encoder} ({}) at t = {t} ns \
-                         does not fit its {} bits",
-                        a.name,
-                        a.bits
-                    );
-                }
-                if Some(encoder as usize) == abs_index {
-                    est.abs(code as u16);
+                if let Some(code) = robot.abs_reading(encoder, code, t)? {
+                    est.abs(code);
                     changed = true;
                 }
             }
