@@ -19,7 +19,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use event::Event;
-pub use read::{read, read_from};
+pub use read::{read, read_checked, read_from, RowCheck};
 pub use write::write;
 
 mod event;

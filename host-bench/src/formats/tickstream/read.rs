@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::row::{parse_header, parse_row, shown, split_fields, Header};
 use super::{
-    is_gz_name, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
+    is_gz_name, Event, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
     MAX_KEPT_COMMENTS, MAX_KEPT_COMMENT_BYTES, MAX_LINE_BYTES, MAX_OTHER_LINES, READ_BUFFER_BYTES,
     UTF8_BOM,
 };
@@ -14,6 +14,16 @@ use flate2::read::MultiGzDecoder;
 /// Reads a tick stream file; gzip-compressed if its name ends in `.gz` or its data starts with
 /// the gzip magic bytes.
 pub fn read(path: &Path) -> Result<TickStream, ReadError> {
+    read_checked(path, &mut |_| Ok(()))
+}
+
+/// What a command asks of every row beyond the format (`play`: a span it can play), checked as
+/// the row is read, so that its error names the row's line.
+pub type RowCheck<'a> = &'a mut dyn FnMut(&Event) -> Result<(), String>;
+
+/// [`read`], with `check` run on every row as it is read: a row it refuses is an error at its
+/// line, and reading stops there.
+pub fn read_checked(path: &Path, check: RowCheck) -> Result<TickStream, ReadError> {
     let file = crate::formats::bounded_file::open_stream(path).map_err(|e| ReadError {
         path: path.to_path_buf(),
         line: None,
@@ -37,9 +47,13 @@ pub fn read(path: &Path) -> Result<TickStream, ReadError> {
     }
     if gzip_data {
         let decoder = MultiGzDecoder::new(input);
-        parse(BufReader::with_capacity(READ_BUFFER_BYTES, decoder), path)
+        parse(
+            BufReader::with_capacity(READ_BUFFER_BYTES, decoder),
+            path,
+            check,
+        )
     } else {
-        parse(input, path)
+        parse(input, path, check)
     }
 }
 
@@ -57,9 +71,10 @@ pub fn read_from(reader: impl Read, name_for_errors: &Path) -> Result<TickStream
         parse(
             BufReader::with_capacity(READ_BUFFER_BYTES, decoder),
             name_for_errors,
+            &mut |_| Ok(()),
         )
     } else {
-        parse(input, name_for_errors)
+        parse(input, name_for_errors, &mut |_| Ok(()))
     }
 }
 
@@ -79,7 +94,7 @@ impl Parser<'_> {
     }
 }
 
-fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> {
+fn parse(mut input: impl BufRead, path: &Path, check: RowCheck) -> Result<TickStream, ReadError> {
     let mut p = Parser { path, line_no: 0 };
     let mut stream = TickStream::default();
     let mut line: Vec<u8> = Vec::with_capacity(256);
@@ -203,6 +218,7 @@ fn parse(mut input: impl BufRead, path: &Path) -> Result<TickStream, ReadError> 
                     }
                 }
                 last_t = Some((t, p.line_no));
+                check(&event).map_err(|m| p.error(m))?;
                 if stream.events.len() == MAX_EVENTS {
                     return Err(p.error(format!(
                         "more than {MAX_EVENTS} events: a stream is replayed in memory, so it \

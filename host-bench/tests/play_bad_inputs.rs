@@ -1,0 +1,206 @@
+//! `play`'s bad inputs: each bad stream refused with its file (and line) named, exit 1, in
+//! under 5 s and 200 MB, before the board is asked where that can be; a long span costs time,
+//! not memory. (Found by a bad-input hunt against `host-bench virtual-board`.)
+
+#[path = "common/board.rs"]
+mod board;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use board::Board;
+use firmware_slave::played::PlayKind;
+use host_bench::formats::robot::Robot;
+use host_bench::formats::tickstream::{self, TickStream};
+use host_bench::serial::expected::Expected;
+use host_bench::serial::played_stream::{PlayedStream, MAX_UPDATES};
+use host_bench::sim::virtual_board;
+use robot_math::exact::FixedPose;
+use robot_math::odometry::Method;
+
+const BIN: &str = env!("CARGO_BIN_EXE_host-bench");
+const HEAD: &str =
+    "# omnibench tick stream v1\n# robot: seed004.toml\nt_ns,kind,id,value,x_m,y_m,theta_rad\n";
+/// Seed 004's swivel (8 bits) at code 159, then one tick a millisecond in.
+const START: &str = "0,truth,,,0,0,0\n0,abs,0,159,,,\n1000000,tick,0,1,,,\n";
+
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(rel)
+}
+
+/// A stream of seed 004 (`HEAD`, then `rows`) as `name` in `dir`, the robot file beside it.
+fn stream(dir: &Path, name: &str, rows: &str) -> String {
+    std::fs::copy(repo("robots/seed004.toml"), dir.join("seed004.toml")).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, format!("{HEAD}{rows}")).unwrap();
+    path.to_str().unwrap().to_owned()
+}
+
+/// `play` with `args` must exit 1 within 5 s saying `says`, print nothing on stdout, and no
+/// child of this test may have grown past 200 MB.
+fn refused(args: &[&str], says: &str) {
+    let start = Instant::now();
+    let o = Command::new(BIN).arg("play").args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+    assert!(err.contains(says), "{args:?}: wanted {says:?} in {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    assert!(o.stdout.is_empty(), "{args:?} printed a result");
+    assert!(start.elapsed() < Duration::from_secs(5), "{args:?}");
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: getrusage writes one rusage into the struct it is given.
+    assert_eq!(
+        unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut usage) },
+        0
+    );
+    assert!(
+        usage.ru_maxrss < 200 * 1024,
+        "a child peaked at {} KB",
+        usage.ru_maxrss
+    );
+}
+
+/// Before the fix, 5 rows whose span asked for 10^8 updates had the host make every expected
+/// report first: 3 GB (an abort), or, at 10^7, 475 MB and then a board that stopped
+/// answering. Now a span past a week (what `record` records at most) is refused at its line,
+/// before the port is even opened; a week is taken.
+#[test]
+fn a_span_play_cannot_take_is_refused_at_its_line_before_the_board_is_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let week_ns = 604_800_000_000_000u64;
+    let far = stream(
+        dir.path(),
+        "far.csv",
+        &format!("{START}# the run goes on\n{},tick,1,1,,,\n", week_ns + 1),
+    );
+    refused(
+        &["--port", "/nonexistent/tty", "--ticks", &far],
+        "far.csv:8: t_ns 604800000000001 is 604800 s after the first row; play takes at most",
+    );
+    let week = stream(
+        dir.path(),
+        "week.csv",
+        &format!("{START}{week_ns},tick,1,1,,,\n"),
+    );
+    refused(
+        &["--port", "/nonexistent/tty", "--ticks", &week],
+        "cannot open serial port /nonexistent/tty",
+    );
+}
+
+/// A span of 28 hours (10^8 updates) plays, in either sensor mode, at the memory of any play:
+/// nothing made ahead of the board but a few reports and a buffer of bytes.
+#[test]
+fn a_long_span_plays_in_bounded_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let long = stream(
+        dir.path(),
+        "long.csv",
+        &format!("{START}100000000000000,tick,1,1,,,\n100000000000001,truth,,,0,0,0\n"),
+    );
+    let board = Board::start(virtual_board::Options::default());
+    for sensor in ["timestamps", "counts"] {
+        let mut child = Command::new(BIN)
+            .args([
+                "play",
+                "--port",
+                &board.port,
+                "--ticks",
+                &long,
+                "--sensor",
+                sensor,
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_secs(3));
+        if child.try_wait().unwrap().is_some() {
+            let out = child.wait_with_output().unwrap();
+            panic!("{sensor}: {}", String::from_utf8_lossy(&out.stderr));
+        }
+        let status = std::fs::read_to_string(format!("/proc/{}/status", child.id())).unwrap();
+        let _ = child.kill();
+        let _ = child.wait();
+        let peak_kb: u64 = status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmHWM:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+            .unwrap();
+        assert!(peak_kb < 200 * 1024, "{sensor}: {peak_kb} KB after 3 s");
+    }
+}
+
+/// The same at the library: a week's span is counted, its bytes sized and its first reports
+/// made at once, without walking its 6·10⁸ updates.
+#[test]
+fn a_week_long_stream_is_counted_without_being_walked() {
+    let robot = Robot::load(&repo("robots/seed004.toml")).unwrap();
+    let layout = robot.odometry_layout().unwrap();
+    let week_ns = 604_800_000_000_000u64;
+    let s = rows(&format!("{START}{week_ns},tick,1,1,,,\n"));
+    let start = Instant::now();
+    for kind in [PlayKind::Ticks, PlayKind::Counts] {
+        let p = PlayedStream::new(&s, &robot, kind, 1000).unwrap();
+        assert!(
+            p.updates >= MAX_UPDATES - 1 && p.updates <= MAX_UPDATES,
+            "{kind:?}"
+        );
+        let mut e = Expected::new(&layout, Method::Exact, &p, FixedPose::default()).unwrap();
+        for _ in 0..1000 {
+            assert!(e.next_report().unwrap().is_some());
+        }
+    }
+    assert!(
+        start.elapsed() < Duration::from_secs(2),
+        "{:?}",
+        start.elapsed()
+    );
+}
+
+fn rows(rows: &str) -> TickStream {
+    tickstream::read_from(format!("{HEAD}{rows}").as_bytes(), Path::new("t.csv")).unwrap()
+}
+
+/// The updates and bytes counted from the rows are what the slave's own code makes of the
+/// bytes made for it, in every corner: rows at 0, an event on an update's instant, one just
+/// past it, a run ending on a truth row, the start reading sent first.
+#[test]
+fn what_is_counted_from_the_rows_is_what_the_slaves_code_makes() {
+    let robot = Robot::load(&repo("robots/seed004.toml")).unwrap();
+    let layout = robot.odometry_layout().unwrap();
+    let cases = [
+        "0,tick,0,1,,,\n0,abs,0,17,,,\n2000000,tick,1,-1,,,\n",
+        "0,truth,,,0,0,0\n0,abs,0,159,,,\n1000600,tick,0,1,,,\n",
+        "0,truth,,,0,0,0\n499,abs,0,3,,,\n500,tick,0,1,,,\n3000000,abs,0,4,,,\n",
+        "5,tick,0,1,,,\n1500000,tick,0,1,,,\n7000000,tick,1,1,,,\n9999999,truth,,,0,0,0\n",
+    ];
+    for text in cases {
+        let s = rows(text);
+        for kind in [PlayKind::Ticks, PlayKind::Counts] {
+            for period in [1000, 700] {
+                let p = PlayedStream::new(&s, &robot, kind, period).unwrap();
+                let mut e =
+                    Expected::new(&layout, Method::Exact, &p, FixedPose::default()).unwrap();
+                let mut n = 0;
+                while e.next_report().unwrap().is_some() {
+                    n += 1;
+                }
+                assert_eq!(n, p.updates, "{text:?} {kind:?} {period}");
+                let (mut whole, mut pieces) = (Vec::new(), Vec::new());
+                p.bytes().fill(&mut whole, usize::MAX / 2).unwrap();
+                let mut w = p.bytes();
+                loop {
+                    let before = pieces.len();
+                    w.fill(&mut pieces, 3).unwrap();
+                    if pieces.len() == before {
+                        break;
+                    }
+                }
+                assert_eq!(whole, pieces);
+                assert_eq!(whole.len() as u64, p.wire_bytes);
+            }
+        }
+    }
+}
