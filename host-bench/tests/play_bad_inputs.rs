@@ -204,3 +204,35 @@ fn what_is_counted_from_the_rows_is_what_the_slaves_code_makes() {
         }
     }
 }
+
+/// A code wider than seed 004's 8-bit swivel encoder played with exit 0 where `replay` refuses
+/// it: both ask the same check now, and say the same.
+#[test]
+fn a_code_wider_than_its_encoder_is_refused_as_replay_refuses_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("wide.csv", "0,abs,0,65535,,,", "does not fit its 8 bits"),
+        (
+            "other.csv",
+            "0,abs,1,3,,,",
+            "but robot seed004 has 1 absolute encoders",
+        ),
+    ];
+    for (name, abs, says) in cases {
+        let rows = format!("0,truth,,,0,0,0\n{abs}\n1000000,tick,0,1,,,\n5000000,tick,1,1,,,\n");
+        let ticks = stream(dir.path(), name, &rows);
+        refused(&["--port", "/nonexistent/tty", "--ticks", &ticks], says);
+        let replay = Command::new(BIN)
+            .args(["replay", "--ticks", &ticks])
+            .output()
+            .unwrap();
+        let replay_err = String::from_utf8_lossy(&replay.stderr);
+        let play = Command::new(BIN)
+            .args(["play", "--port", "/nonexistent/tty", "--ticks", &ticks])
+            .output()
+            .unwrap();
+        let play_err = String::from_utf8_lossy(&play.stderr);
+        let said = |e: &str| e.split(": ").last().unwrap_or("").trim().to_string();
+        assert_eq!(said(&play_err), said(&replay_err), "{name}");
+    }
+}
