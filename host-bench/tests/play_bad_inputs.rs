@@ -236,3 +236,28 @@ fn a_code_wider_than_its_encoder_is_refused_as_replay_refuses_it() {
         assert_eq!(said(&play_err), said(&replay_err), "{name}");
     }
 }
+
+/// "board vs host 0 of 0 updates bit-exact" exited 0: a stream whose rows end within the
+/// slave's first update period gives it nothing to compute. Refused, before anything is sent.
+#[test]
+fn a_stream_that_gives_no_update_exits_1_nothing_scored() {
+    let dir = tempfile::tempdir().unwrap();
+    let one = stream(dir.path(), "one.csv", START);
+    let mut same = String::from(START);
+    for _ in 0..3000 {
+        same.push_str("1000000,tick,0,1,,,\n");
+    }
+    same.push_str("2000000,truth,,,0,0,0\n");
+    let same = stream(dir.path(), "same.csv", &same);
+    let board = Board::start(virtual_board::Options::default());
+    for ticks in [&one, &same] {
+        refused(
+            &["--port", &board.port, "--ticks", ticks],
+            "nothing scored: the rows the slave is sent end 1000 µs after the first",
+        );
+        refused(
+            &["--port", &board.port, "--ticks", ticks, "--json"],
+            ".csv: nothing scored",
+        );
+    }
+}

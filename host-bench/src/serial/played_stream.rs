@@ -105,7 +105,7 @@ pub struct PlayedStream<'a> {
 
 impl<'a> PlayedStream<'a> {
     /// `stream`'s rows for `robot` (checked as [`check_rows`] does) played at `period_us`:
-    /// refused if they need more than [`MAX_UPDATES`] updates.
+    /// refused if they need more than [`MAX_UPDATES`] updates, or none.
     pub fn new(
         stream: &'a TickStream,
         robot: &Robot,
@@ -156,6 +156,13 @@ impl<'a> PlayedStream<'a> {
                 i + 1,
                 rows[i].t_ns(),
                 s.t_us(rows[i].t_ns()).div_ceil(p)
+            );
+        }
+        if s.updates == 0 {
+            bail!(
+                "nothing scored: the rows the slave is sent end {last_sent} µs after the first, \
+                 within its first update (every {period_us} µs), so it would compute no update \
+                 to compare (a stream must go on past one update period)"
             );
         }
         let mut wire_bytes = 0;
