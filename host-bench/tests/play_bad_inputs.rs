@@ -12,9 +12,10 @@ use std::time::{Duration, Instant};
 use board::Board;
 use firmware_slave::played::PlayKind;
 use host_bench::formats::robot::Robot;
-use host_bench::formats::tickstream::{self, TickStream};
+use host_bench::formats::tickstream::{self, Event, TickStream};
 use host_bench::serial::expected::Expected;
 use host_bench::serial::played_stream::{PlayedStream, MAX_UPDATES};
+use host_bench::serial::{play, record};
 use host_bench::sim::virtual_board;
 use robot_math::exact::FixedPose;
 use robot_math::odometry::Method;
@@ -258,6 +259,64 @@ fn a_stream_that_gives_no_update_exits_1_nothing_scored() {
         refused(
             &["--port", &board.port, "--ticks", ticks, "--json"],
             ".csv: nothing scored",
+        );
+    }
+}
+
+/// Played from a recording of seed 004's carriage, the board started its odometry at swivel
+/// position 0, not where the recording's first reading put it: 139 mm off the truth where
+/// `replay` was 0.0007 mm off. It starts at the stream's start reading now, as replay does.
+#[test]
+fn a_carriage_recording_plays_as_close_to_its_truth_as_it_replays() {
+    let dir = tempfile::tempdir().unwrap();
+    let board = Board::start(virtual_board::Options::default());
+    let out = dir.path().join("rec.csv");
+    record::record(
+        &mut board.link(),
+        &record::RecordRequest {
+            out: &out,
+            duration_s: Some(2.0),
+            counts: false,
+            robot: None,
+            progress: None,
+        },
+    )
+    .unwrap();
+    let stream = tickstream::read(&out).unwrap();
+    let robot = Robot::load(&stream.robot_path(&out).unwrap()).unwrap();
+    let replay = |s: &TickStream, rate: Option<f64>| {
+        let mode = rate.map_or(host_bench::eval::replay::Mode::Timestamps, |rate_hz| {
+            host_bench::eval::replay::Mode::Counts { rate_hz }
+        });
+        host_bench::eval::replay::replay(&robot, s, "exact", mode)
+            .unwrap()
+            .final_error_m
+    };
+    // The start reading matters in this recording: without it replay is far off too.
+    let mut blind = stream.clone();
+    let t0 = stream.events[0].t_ns();
+    blind
+        .events
+        .retain(|e| !matches!(*e, Event::Abs { t_ns, .. } if t_ns == t0));
+    assert!(replay(&blind, None) > 1e-3, "{}", replay(&blind, None));
+    for (kind, rate) in [(PlayKind::Ticks, None), (PlayKind::Counts, Some(1000.0))] {
+        let o = play::play(
+            &mut board.link(),
+            &play::PlayRequest {
+                ticks: &out,
+                robot: &robot,
+                method: Method::Exact,
+                kind,
+                stream: &stream,
+                progress: None,
+            },
+        )
+        .unwrap();
+        assert_eq!(o.mismatches, 0, "{:?}", o.first_mismatch);
+        let (played, replayed) = (o.final_error_m.unwrap(), replay(&stream, rate));
+        assert!(
+            (played - replayed).abs() < 0.05e-3,
+            "{kind:?}: play {played} m, replay {replayed} m"
         );
     }
 }

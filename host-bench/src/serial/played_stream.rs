@@ -6,6 +6,9 @@
 //! time 0 go into sample 1) and the last absolute reading in it, so the board sees the counts
 //! a timer read at `k·P` would show.
 //!
+//! With time stamps, the stream's start reading of the absolute encoder goes first, so that the
+//! slave starts its odometry there (`firmware_slave::played`), as `replay` does.
+//!
 //! The bytes are made as they are sent ([`PlayedStream::bytes`]), never held whole: in counts
 //! mode they grow with the span (a byte for every sample in which nothing moved), not with the
 //! rows, and five rows a week apart are 6·10⁸ of them. What grows with the span is bounded
@@ -89,6 +92,8 @@ pub struct PlayedStream<'a> {
     t0: u64,
     /// The absolute encoder the odometry reads: the rows of others are not sent.
     abs_index: Option<usize>,
+    /// With time stamps, the start reading's row, sent first.
+    first: Option<usize>,
     pub kind: PlayKind,
     pub period_us: u32,
     /// Tick and absolute-encoder rows sent.
@@ -121,6 +126,7 @@ impl<'a> PlayedStream<'a> {
             rows,
             t0: rows.first().map_or(0, |e| e.t_ns()),
             abs_index: robot.odometry_abs_index(),
+            first: None,
             kind,
             period_us,
             events: 0,
@@ -129,6 +135,9 @@ impl<'a> PlayedStream<'a> {
             wire_bytes: 0,
             duration_s: 0.0,
         };
+        if kind == PlayKind::Ticks {
+            s.first = robot.start_reading(rows).map(|(i, _)| i);
+        }
         let p = period_us as u64;
         let sent = (0..rows.len()).filter_map(|i| s.event(i));
         let events = sent.clone().count() as u64;
@@ -230,6 +239,7 @@ impl<'a> PlayedStream<'a> {
         WireBytes {
             s: self,
             row: 0,
+            first_sent: false,
             enc: EventEncoder::new(),
             sample: Sample::default(),
             sample_k: 1,
@@ -248,6 +258,7 @@ pub struct WireBytes<'s, 'a> {
     s: &'s PlayedStream<'a>,
     /// Rows before this one are taken in.
     row: usize,
+    first_sent: bool,
     enc: EventEncoder,
     /// The sample being filled, number `sample_k`.
     sample: Sample,
@@ -288,10 +299,15 @@ impl WireBytes<'_, '_> {
         self.len = 0;
         self.zeros = 0;
         if s.kind == PlayKind::Ticks {
-            let Some(event) = (self.row..s.rows.len()).find_map(|i| {
+            let first = if self.first_sent { None } else { s.first };
+            self.first_sent = true;
+            let next = first.or_else(|| {
+                let i = (self.row..s.rows.len())
+                    .find(|&i| Some(i) != s.first && s.event(i).is_some())?;
                 self.row = i + 1;
-                s.event(i)
-            }) else {
+                Some(i)
+            });
+            let Some(event) = next.and_then(|i| s.event(i)) else {
                 return Ok(false);
             };
             self.len = self
