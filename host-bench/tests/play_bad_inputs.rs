@@ -1,6 +1,7 @@
-//! `play`'s bad inputs: each bad stream refused with its file (and line) named, exit 1, in
-//! under 5 s and 200 MB, before the board is asked where that can be; a long span costs time,
-//! not memory. (Found by a bad-input hunt against `host-bench virtual-board`.)
+//! `play`'s bad inputs and what a play can leave behind on a board: each bad stream refused
+//! with its file (and line) named, exit 1, in under 5 s and 200 MB, before the board is asked
+//! where that can be; a long span costs time, not memory; a play after an interrupted one runs
+//! whole. (Found by a bad-input hunt against `host-bench virtual-board`.)
 
 #[path = "common/board.rs"]
 mod board;
@@ -15,8 +16,11 @@ use host_bench::formats::robot::Robot;
 use host_bench::formats::tickstream::{self, Event, TickStream};
 use host_bench::serial::expected::Expected;
 use host_bench::serial::played_stream::{PlayedStream, MAX_UPDATES};
-use host_bench::serial::{play, record};
+use host_bench::serial::{play, record, session};
 use host_bench::sim::virtual_board;
+use protocol::link::{GbnSender, DEFAULT_TIMEOUT_US};
+use protocol::serial::{HostToMaster, MasterToHost};
+use protocol::spi::{Reports, SensorSource};
 use robot_math::exact::FixedPose;
 use robot_math::odometry::Method;
 
@@ -319,4 +323,73 @@ fn a_carriage_recording_plays_as_close_to_its_truth_as_it_replays() {
             "{kind:?}: play {played} m, replay {replayed} m"
         );
     }
+}
+
+/// A play stopped midway (Ctrl-C) left every later play of the same stream stalled: "the board
+/// stopped answering after 0 of 5099 updates". The slave still read the old played stream, so
+/// the new play's switch to it showed at once, before the slave had applied it; the report
+/// bytes of the old stream the master took in meanwhile came first in the new session, and the
+/// host could not read past them.
+#[test]
+fn a_play_after_an_interrupted_one_runs_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let name = "seed000-0.8mm.toml";
+    std::fs::copy(repo(&format!("robots/{name}")), dir.path().join(name)).unwrap();
+    let robot = Robot::load(&dir.path().join(name)).unwrap();
+    let traj = host_bench::sim::trajectory::build("seed000-line").unwrap();
+    let opts = host_bench::sim::generate::GenerateOptions::default();
+    let s = host_bench::sim::generate::generate(&robot, Some(name), traj.as_ref(), &opts).unwrap();
+    let ticks = dir.path().join("line.csv");
+    tickstream::write(&ticks, &s).unwrap();
+    let board = Board::start(virtual_board::Options::default());
+    let play_it = || {
+        play::play(
+            &mut board.link(),
+            &play::PlayRequest {
+                ticks: &ticks,
+                robot: &robot,
+                method: Method::Exact,
+                kind: PlayKind::Ticks,
+                stream: &s,
+                progress: None,
+            },
+        )
+    };
+    let clean = play_it().unwrap();
+    interrupted_play(&board, &robot, &s);
+    let o = play_it().unwrap_or_else(|e| panic!("after an interrupted play: {e:#}"));
+    assert_eq!(o.mismatches, 0, "{:?}", o.first_mismatch);
+    assert_eq!(o.board_updates, clean.board_updates);
+    assert_eq!(o.final_error_m, clean.final_error_m);
+}
+
+/// What a play stopped by Ctrl-C leaves: the slave reading a played stream half sent, its
+/// reports never acknowledged (the report buffers full), and no one on the line.
+fn interrupted_play(board: &Board, robot: &Robot, s: &TickStream) {
+    let mut link = board.link();
+    let info = session::hello(&mut link).unwrap();
+    let layout = robot.odometry_layout().unwrap();
+    session::load_robot(&mut link, &layout).unwrap();
+    let source = SensorSource::PlayedTicks;
+    let start = protocol::Pose::default();
+    session::set_method_and_source(&mut link, Method::Exact, source, Reports::Poses, start)
+        .unwrap();
+    let p = PlayedStream::new(s, robot, PlayKind::Ticks, info.period_us).unwrap();
+    let mut bytes = Vec::new();
+    p.bytes()
+        .fill(&mut bytes, (p.wire_bytes / 2) as usize)
+        .unwrap();
+    let mut tx: GbnSender<4096> = GbnSender::new(DEFAULT_TIMEOUT_US);
+    let (mut offered, wall) = (0, Instant::now());
+    while wall.elapsed() < Duration::from_millis(1500) {
+        offered += tx.offer(&bytes[offered..]);
+        let now = wall.elapsed().as_micros() as u64;
+        while let Some(frame) = tx.poll_transmit(now) {
+            link.send(&HostToMaster::Events(frame)).unwrap();
+        }
+        if let Some(MasterToHost::EventsAck(a)) = link.recv(Duration::from_millis(5)).unwrap() {
+            tx.on_ack(a, now);
+        }
+    }
+    assert!(offered > 1000, "the interrupted play sent {offered} bytes");
 }

@@ -107,6 +107,10 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         PlayKind::Counts => SensorSource::PlayedCounts,
     };
     session::set_method_and_source(link, req.method, source, Reports::Poses, start_wire)?;
+    // A new session now that the slave's streams restarted: report bytes of an earlier stream
+    // (a play interrupted, its reports never acknowledged) that the master took in before the
+    // slave switched are dropped with the old session, not read as the start of this play's.
+    session::hello(link)?;
 
     let wall = Instant::now();
     let clock = |w: Instant| w.elapsed().as_micros() as u64;
@@ -171,8 +175,18 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         }
         // Whole records only; a partial one waits for its remaining bytes.
         let mut rest: &[u8] = &report_bytes;
-        while let Ok((r, tail)) = postcard::take_from_bytes::<Report>(rest) {
-            rest = tail;
+        loop {
+            let r = match postcard::take_from_bytes::<Report>(rest) {
+                Ok((r, tail)) => {
+                    rest = tail;
+                    r
+                }
+                Err(postcard::Error::DeserializeUnexpectedEnd) => break,
+                Err(e) => bail!(
+                    "after {updates} updates the board's reports cannot be read ({e}): not \
+                     the records this play's slave writes"
+                ),
+            };
             match r {
                 Report::Pose { pose, .. } => {
                     updates += 1;
