@@ -8,6 +8,13 @@
 //! Played time: update `k` (k = 1, 2, ...) happens at `k · period` of the stream's clock and
 //! takes in every event up to and including that instant; each update reports its pose. In
 //! counts mode every sample is one update.
+//!
+//! The start: odometry starts at the given pose with every count zero and the absolute encoder
+//! at position 0, until the stream says where it stands: an absolute reading at played time 0
+//! that comes before anything else (the player sends the stream's start reading first), or in
+//! counts mode the first sample's reading, starts it again there, as `replay` starts at the
+//! stream's first reading. (Started at position 0, a carriage whose swivel stood elsewhere
+//! rolled its whole track turned by the difference.)
 
 use protocol::events::{Event, EventDecoder, Sample, SampleDecoder, Step};
 use protocol::spi::{pose_digest, Report};
@@ -55,6 +62,8 @@ pub struct PlayedSensors {
     /// Set when the stream failed to decode; nothing more is taken.
     failed: bool,
     updates: u32,
+    /// Nothing taken in yet: a reading now is where the absolute encoder starts.
+    at_start: bool,
 }
 
 /// The played-sensor kind an odometry method needs.
@@ -97,7 +106,25 @@ impl PlayedSensors {
             offset: 0,
             failed: false,
             updates: 0,
+            at_start: true,
         })
+    }
+
+    /// Start again as [`PlayedSensors::new`] did, but with the absolute encoder at `code`.
+    fn start_at_abs(&mut self, code: u16) {
+        let o = &self.odometry;
+        // What `new` built from these same settings; it cannot fail now.
+        if let Ok(o) = Odometry::new(
+            o.layout(),
+            o.method(),
+            o.sensors(),
+            o.pose(),
+            0,
+            [0; MAX_ENCODERS],
+            Some(code),
+        ) {
+            self.odometry = o;
+        }
     }
 
     pub fn odometry(&self) -> &Odometry {
@@ -164,6 +191,10 @@ impl PlayedSensors {
             None => true,
             Some(Pending::Event(e)) => {
                 let t_ns = e.t_us().saturating_mul(1000);
+                if let (true, Event::Abs { t_us: 0, code }) = (self.at_start, e) {
+                    self.start_at_abs(code);
+                }
+                self.at_start = false;
                 // Every update strictly before the event sees the stream as it was.
                 while t_ns > self.next_update_ns {
                     if !emit.has_room() {
@@ -189,6 +220,10 @@ impl PlayedSensors {
                     self.pending = Some(Pending::Sample(s));
                     return false;
                 }
+                if let (true, Some(code)) = (self.at_start, s.abs) {
+                    self.start_at_abs(code);
+                }
+                self.at_start = false;
                 for (c, d) in self.counts.iter_mut().zip(s.counts_delta) {
                     *c += d as i64;
                 }

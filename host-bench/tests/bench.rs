@@ -210,14 +210,13 @@ fn play_file(
     faults: host_bench::serial::link::Faults,
 ) -> anyhow::Result<play::PlayOutcome> {
     let stream = tickstream::read(ticks)?;
-    let layout = robot.odometry_layout()?;
     let mut link = board.link();
     link.faults = faults;
     play::play(
         &mut link,
         &play::PlayRequest {
-            robot_name: &robot.name,
-            layout: &layout,
+            ticks,
+            robot,
             method: Method::Exact,
             kind,
             stream: &stream,

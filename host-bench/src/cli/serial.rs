@@ -7,7 +7,7 @@ use clap::Args;
 use firmware_slave::played::PlayKind;
 use host_bench::boards::bench_file;
 use host_bench::formats::{robot::Robot, tickstream};
-use host_bench::serial::{link::Link, play, record};
+use host_bench::serial::{link::Link, play, played_stream, record};
 use host_bench::sim::virtual_board;
 
 /// Where the master's serial link is: --port/--baud, else bench.toml's `[link]`.
@@ -86,7 +86,8 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
     } else {
         PlayKind::Ticks
     };
-    let stream = tickstream::read(&a.ticks)?;
+    // A span play cannot take is refused at its line, before the board is asked.
+    let stream = tickstream::read_checked(&a.ticks, &mut played_stream::span_check())?;
     let robot_path = match &a.robot {
         Some(p) => p.clone(),
         None => stream.robot_path(&a.ticks).with_context(|| {
@@ -97,7 +98,13 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
         })?,
     };
     let robot = Robot::load(&robot_path)?;
-    let layout = robot.odometry_layout()?;
+    robot
+        .odometry_layout()
+        .with_context(|| robot_path.display().to_string())?;
+    // What is wrong with the rows is said before the port is opened (play checks again, for
+    // its other callers).
+    played_stream::check_rows(&stream, &robot)
+        .map_err(|e| anyhow::anyhow!("{}: {e:#}", a.ticks.display()))?;
     let mut link = a.port.open()?;
     link.faults.corrupt = a.fault_corrupt_frames.clone();
     link.faults.drop = a.fault_drop_frames.clone();
@@ -105,8 +112,8 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
     let outcome = play::play(
         &mut link,
         &play::PlayRequest {
-            robot_name: &robot.name,
-            layout: &layout,
+            ticks: &a.ticks,
+            robot: &robot,
             method,
             kind,
             stream: &stream,
@@ -172,8 +179,11 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
                 "vs truth       final error {:.4} mm, max {:.4} mm over {} rows",
                 f * 1e3,
                 m * 1e3,
-                o.truth_rows
+                o.scored_rows
             ),
+            _ if o.truth_rows > 0 => {
+                println!("vs truth       no truth row within the updates played")
+            }
             _ => println!("vs truth       the stream has no truth rows"),
         }
     }

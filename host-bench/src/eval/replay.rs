@@ -290,17 +290,9 @@ fn estimator(
             _ => None,
         })
         .unwrap_or_default();
-    let abs_index = robot.odometry_abs_index();
     let t0 = stream.events.first().map_or(0, |e| e.t_ns());
     // The absolute encoder as it reads at the start (the stream's first reading of it there).
-    let abs0 = stream.events.iter().find_map(|e| match *e {
-        Event::Abs {
-            t_ns,
-            encoder,
-            code,
-        } if t_ns == t0 && Some(encoder as usize) == abs_index => Some(code as u16),
-        _ => None,
-    });
+    let abs0 = robot.start_reading(&stream.events).map(|(_, code)| code);
     let estimator: Box<dyn Estimator> = if algorithm == ORACLE {
         if robot.carriage.is_some() {
             bail!(
@@ -374,7 +366,6 @@ fn drive(
     samples: Samples,
     score: &mut Scorer,
 ) -> Result<()> {
-    let abs_index = robot.odometry_abs_index();
     let t0 = stream.events.first().map_or(0, |e| e.t_ns());
     let mut wheels = [TickTracker::starting(0, t0); MAX_ENCODERS];
     let period_ns = mode.period_ns();
@@ -418,8 +409,8 @@ fn drive(
                 changed = true;
             }
             if let Event::Abs { encoder, code, .. } = events[j] {
-                if Some(encoder as usize) == abs_index {
-                    est.abs(code as u16);
+                if let Some(code) = robot.abs_reading(encoder, code, t)? {
+                    est.abs(code);
                     changed = true;
                 }
             }

@@ -63,28 +63,15 @@ pub fn check_event(robot: &Robot, n: usize, event: &Event) -> Result<(), String>
             "tick for encoder {encoder} at t = {t} ns, but robot {} has {n} encoders",
             robot.name
         )),
+        // The robot's own check, which `play` asks too.
         Event::Abs {
             t_ns: t,
             encoder,
             code,
-        } => {
-            let Some(a) = robot.absolute_encoders.get(encoder as usize) else {
-                return Err(format!(
-                    "abs reading of absolute encoder {encoder} at t = {t} ns, but robot {} has \
-                     {} absolute encoders",
-                    robot.name,
-                    robot.absolute_encoders.len()
-                ));
-            };
-            if u64::from(code) >> a.bits != 0 {
-                return Err(format!(
-                    "abs reading {code} of absolute encoder {encoder} ({}) at t = {t} ns does \
-                     not fit its {} bits",
-                    a.name, a.bits
-                ));
-            }
-            Ok(())
-        }
+        } => robot
+            .abs_reading(encoder, code, t)
+            .map(|_| ())
+            .map_err(|e| e.to_string()),
         _ => Ok(()),
     }
 }

@@ -1,8 +1,10 @@
 //! The link to real boards over serial (or to `host-bench virtual-board` over a
 //! pseudo-terminal): framing and fault knobs ([`link`]), the handshake and board settings
 //! ([`session`]), and the two bench jobs, [`play`] (tick streams into the slave, its poses
-//! checked bit for bit against the host's) and [`record`] (real encoders into a tick stream).
+//! checked bit for bit against the host's, [`expected`]) and [`record`] (real encoders into a
+//! tick stream).
 
+pub mod expected;
 pub mod link;
 pub mod play;
 pub mod played_stream;

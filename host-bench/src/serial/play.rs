@@ -1,70 +1,35 @@
 //! `host-bench play`: stream a tick stream to the boards and check that the slave computes,
 //! update for update, the very poses the host computes with the same code on the same bytes.
 //!
-//! The host runs [`firmware_slave::played::PlayedSensors`] over the bytes it is about to send
-//! (the expected reports), loads the robot into the slave, switches it to played sensors, then
-//! streams the bytes over the go-back-N link while collecting the slave's pose reports, which
-//! must equal the expected ones exactly (micrometre pose and the digest of the full-precision
-//! pose). Playback runs as fast as the link allows, in played time.
+//! The host runs [`firmware_slave::played::PlayedSensors`] over the bytes it sends (the
+//! expected reports, [`super::expected`]), loads the robot into the slave, switches it to
+//! played sensors, then streams the bytes over the go-back-N link while collecting the slave's
+//! pose reports, which must equal the expected ones exactly (micrometre pose and the digest of
+//! the full-precision pose). Playback runs as fast as the link allows, in played time.
 
+use std::path::Path;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context, Result};
-use firmware_slave::played::{PlayKind, PlayedSensors, ReportSink};
+use anyhow::{anyhow, bail, Context, Result};
+use firmware_slave::played::PlayKind;
 use protocol::link::{GbnReceiver, GbnSender, DEFAULT_TIMEOUT_US};
 use protocol::serial::{status as serial_status, HostToMaster, MasterToHost};
 use protocol::spi::{Report, Reports, SensorSource};
 use robot_math::exact::FixedPose;
-use robot_math::odometry::{Layout, Method};
+use robot_math::odometry::Method;
 use robot_math::Pose2;
 use serde::Serialize;
 
+use super::expected::Expected;
 use super::link::Link;
-use super::played_stream::PlayedStream;
+use super::played_stream::{self, PlayedStream};
 use super::session;
+use crate::formats::robot::Robot;
 
 /// Host-side event buffer: bytes offered to the link ahead of the master's credit.
 const SEND_BUFFER: usize = 16 * 1024;
 /// No progress for this long means the board stopped answering.
 const STALL: Duration = Duration::from_secs(5);
-
-/// Reports into a plain list (the host has room for all of them).
-struct ListSink(Vec<Report>);
-
-impl ReportSink for ListSink {
-    fn has_room(&self) -> bool {
-        true
-    }
-    fn push(&mut self, r: Report) {
-        self.0.push(r)
-    }
-}
-
-/// What the host expects the slave to report for `stream`.
-pub fn expected_reports(
-    layout: &Layout,
-    method: Method,
-    stream: &PlayedStream,
-    start: FixedPose,
-) -> Result<Vec<Report>> {
-    let mut engine = PlayedSensors::new(layout, method, stream.kind, stream.period_us, start)
-        .map_err(|e| {
-            anyhow::anyhow!(
-                "--algorithm {} with --sensor {}: {e}",
-                method.name(),
-                match stream.kind {
-                    firmware_slave::played::PlayKind::Ticks => "timestamps",
-                    firmware_slave::played::PlayKind::Counts => "counts",
-                }
-            )
-        })?;
-    let mut sink = ListSink(Vec::new());
-    let used = engine.feed(&stream.bytes, &mut sink);
-    if used != stream.bytes.len() || engine.failed() {
-        bail!("the host's own decoder refused the stream at byte {used}: an encoder bug");
-    }
-    Ok(sink.0)
-}
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Mismatch {
@@ -101,14 +66,17 @@ pub struct PlayOutcome {
     pub played_seconds: f64,
     pub wall_seconds: f64,
     pub played_per_wall_second: f64,
+    /// Truth rows in the stream, and those scored (the rest lie past the last update).
     pub truth_rows: usize,
+    pub scored_rows: usize,
     pub final_error_m: Option<f64>,
     pub max_error_m: Option<f64>,
 }
 
 pub struct PlayRequest<'a> {
-    pub robot_name: &'a str,
-    pub layout: &'a Layout,
+    /// The stream's file, named in errors about its rows.
+    pub ticks: &'a Path,
+    pub robot: &'a Robot,
     pub method: Method,
     pub kind: PlayKind,
     pub stream: &'a crate::formats::tickstream::TickStream,
@@ -121,63 +89,67 @@ fn wire_pose(p: Pose2) -> protocol::Pose {
 
 /// Play `req` to the boards on `link`.
 pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
-    // Without a tick the board computes nothing to compare: "0 of 0 updates bit-exact" is no
-    // result (replay refuses such a stream too).
-    if !req
-        .stream
-        .events
-        .iter()
-        .any(|e| matches!(e, crate::formats::tickstream::Event::Tick { .. }))
-    {
-        bail!("the stream has no tick rows: nothing to play, nothing scored");
-    }
+    let in_file = |e: anyhow::Error| anyhow!("{}: {e:#}", req.ticks.display());
+    let layout = req.robot.odometry_layout()?;
+    // What the rows are is checked before the board is asked; what its period makes of them
+    // (the updates, none at all) once it has said its period.
+    played_stream::check_rows(req.stream, req.robot).map_err(in_file)?;
     let info = session::hello(link)?;
-    let layout = req.layout;
-    let stream = super::played_stream::encode(
-        req.stream,
-        layout.encoders(),
-        layout.abs().is_some(),
-        req.kind,
-        info.period_us,
-    )?;
+    let stream =
+        PlayedStream::new(req.stream, req.robot, req.kind, info.period_us).map_err(in_file)?;
     // Both sides start from the micrometre pose on the wire.
     let start_wire = wire_pose(stream.start());
     let start = FixedPose::from_micrometres(start_wire.x_um, start_wire.y_um, start_wire.heading.0);
-    let expected = expected_reports(layout, req.method, &stream, start)?;
-    let fingerprint = session::load_robot(link, layout)?;
+    let mut expected = Expected::new(&layout, req.method, &stream, start)?;
+    let fingerprint = session::load_robot(link, &layout)?;
     let source = match req.kind {
         PlayKind::Ticks => SensorSource::PlayedTicks,
         PlayKind::Counts => SensorSource::PlayedCounts,
     };
     session::set_method_and_source(link, req.method, source, Reports::Poses, start_wire)?;
+    // A new session now that the slave's streams restarted: report bytes of an earlier stream
+    // (a play interrupted, its reports never acknowledged) that the master took in before the
+    // slave switched are dropped with the old session, not read as the start of this play's.
+    session::hello(link)?;
 
     let wall = Instant::now();
     let clock = |w: Instant| w.elapsed().as_micros() as u64;
     let mut tx: GbnSender<SEND_BUFFER> = GbnSender::new(DEFAULT_TIMEOUT_US);
     let mut rx: GbnReceiver<4096> = GbnReceiver::new();
-    let mut offered = 0usize;
+    let mut wire = stream.bytes();
+    // Bytes made and not yet taken by the sender: `out[out_at..]`.
+    let mut out: Vec<u8> = Vec::with_capacity(SEND_BUFFER);
+    let mut out_at = 0usize;
+    let mut offered = 0u64;
     let mut report_bytes: Vec<u8> = Vec::new();
-    let mut got: Vec<Report> = Vec::new();
+    let mut updates = 0u64;
     let mut mismatches = 0u64;
     let mut first_mismatch = None;
+    let mut scorer = Scorer::new(stream.truth(), stream.period_us, start.to_pose2());
     let mut last_progress = Instant::now();
     if let Some(bar) = req.progress {
-        bar.set_length(expected.len() as u64);
+        bar.set_length(stream.updates);
     }
-    while got.len() < expected.len() {
-        offered += tx.offer(&stream.bytes[offered..]);
+    while updates < stream.updates {
+        if out_at == out.len() {
+            out.clear();
+            out_at = 0;
+            wire.fill(&mut out, SEND_BUFFER)?;
+        }
+        let n = tx.offer(&out[out_at..]);
+        out_at += n;
+        offered += n as u64;
         while let Some(frame) = tx.poll_transmit(clock(wall)) {
             link.send(&HostToMaster::Events(frame))?;
         }
         let Some(msg) = link.recv(Duration::from_millis(5))? else {
             if last_progress.elapsed() > STALL {
                 bail!(
-                    "the board stopped answering after {} of {} updates ({} of {} event bytes \
-                     acknowledged)",
-                    got.len(),
-                    expected.len(),
-                    offered - tx.unacked(),
-                    stream.bytes.len()
+                    "the board stopped answering after {updates} of {} updates ({} of {} event \
+                     bytes acknowledged)",
+                    stream.updates,
+                    offered - tx.unacked() as u64,
+                    stream.wire_bytes
                 );
             }
             continue;
@@ -192,10 +164,9 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
             }
             MasterToHost::Rejected(r) => bail!("the master rejected a command: {r:?}"),
             MasterToHost::Telemetry(t) if t.status & serial_status::SLAVE_RESET != 0 => bail!(
-                "the slave reset after {} of {} updates: it started again from power-on, so \
-                 this play is void (play it again)",
-                got.len(),
-                expected.len()
+                "the slave reset after {updates} of {} updates: it started again from \
+                 power-on, so this play is void (play it again)",
+                stream.updates
             ),
             _ => {}
         }
@@ -204,20 +175,32 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         }
         // Whole records only; a partial one waits for its remaining bytes.
         let mut rest: &[u8] = &report_bytes;
-        while let Ok((r, tail)) = postcard::take_from_bytes::<Report>(rest) {
-            rest = tail;
+        loop {
+            let r = match postcard::take_from_bytes::<Report>(rest) {
+                Ok((r, tail)) => {
+                    rest = tail;
+                    r
+                }
+                Err(postcard::Error::DeserializeUnexpectedEnd) => break,
+                Err(e) => bail!(
+                    "after {updates} updates the board's reports cannot be read ({e}): not \
+                     the records this play's slave writes"
+                ),
+            };
             match r {
-                Report::Pose { .. } => {
-                    let i = got.len();
-                    if expected.get(i) != Some(&r) {
+                Report::Pose { pose, .. } => {
+                    updates += 1;
+                    let want = expected.next_report()?;
+                    if want.as_ref() != Some(&r) {
                         mismatches += 1;
                         first_mismatch.get_or_insert_with(|| Mismatch {
-                            update: i as u64 + 1,
+                            update: updates,
                             board: format!("{r:?}"),
-                            host: format!("{:?}", expected.get(i)),
+                            host: format!("{want:?}"),
                         });
                     }
-                    got.push(r);
+                    let (x, y, th) = pose.to_si();
+                    scorer.push(Pose2::new(x, y, th));
                     last_progress = Instant::now();
                 }
                 Report::BadEvents { offset } => {
@@ -229,8 +212,15 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         let consumed = report_bytes.len() - rest.len();
         report_bytes.drain(..consumed);
         if let Some(bar) = req.progress {
-            bar.set_position(got.len() as u64);
+            bar.set_position(updates);
         }
+    }
+    if updates == stream.updates && expected.next_report()?.is_some() {
+        bail!(
+            "the host's own decoder makes more than the {} updates counted from the stream: a \
+             host bug",
+            stream.updates
+        );
     }
     let wall_seconds = wall.elapsed().as_secs_f64();
     // Leave the board as it was: its power-on robot back if it had it, its own sensors.
@@ -245,11 +235,11 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         Reports::Off,
         protocol::Pose::default(),
     );
-    let (final_error_m, max_error_m) = score(&got, &stream, start.to_pose2());
-    let played_seconds = got.len() as f64 * stream.period_us as f64 * 1e-6;
+    let (final_error_m, max_error_m, scored_rows) = scorer.finish();
+    let played_seconds = updates as f64 * stream.period_us as f64 * 1e-6;
     Ok(PlayOutcome {
         port: link.name().to_string(),
-        robot: req.robot_name.to_string(),
+        robot: req.robot.name.clone(),
         robot_fingerprint: format!("{fingerprint:08x}"),
         algorithm: req.method.name().to_string(),
         integer_method: matches!(req.method, Method::Exact | Method::Lut),
@@ -259,12 +249,12 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         },
         events: stream.events,
         samples: stream.samples,
-        board_updates: got.len() as u64,
-        expected_updates: expected.len() as u64,
+        board_updates: updates,
+        expected_updates: stream.updates,
         mismatches,
         first_mismatch,
-        wire_bytes: stream.bytes.len() as u64,
-        bytes_per_event: stream.bytes.len() as f64 / stream.events.max(1) as f64,
+        wire_bytes: stream.wire_bytes,
+        bytes_per_event: stream.wire_bytes as f64 / stream.events.max(1) as f64,
         link_bytes_sent: link.stats.bytes_sent,
         link_bytes_received: link.stats.bytes_received,
         frames_corrupted: link.stats.events_frames_corrupted,
@@ -273,42 +263,85 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         played_seconds,
         wall_seconds,
         played_per_wall_second: played_seconds / wall_seconds.max(1e-9),
-        truth_rows: stream.truth.len(),
+        truth_rows: stream.truth().count(),
+        scored_rows,
         final_error_m,
         max_error_m,
     })
 }
 
-/// Error of the board's poses against the truth rows: the board's pose at a row's instant is
-/// interpolated between the two updates around it (the start pose before the first).
-fn score(reports: &[Report], stream: &PlayedStream, start: Pose2) -> (Option<f64>, Option<f64>) {
-    let poses: Vec<Pose2> = std::iter::once(start)
-        .chain(reports.iter().filter_map(|r| match *r {
-            Report::Pose { pose, .. } => {
-                let (x, y, th) = pose.to_si();
-                Some(Pose2::new(x, y, th))
-            }
-            _ => None,
-        }))
-        .collect();
-    let p_ns = stream.period_us as f64 * 1e3;
-    let mut last = None;
-    let mut max = 0.0f64;
-    for &(t_ns, truth) in &stream.truth {
-        let k = t_ns as f64 / p_ns;
-        let i = k.floor() as usize;
-        if i + 1 >= poses.len() && i >= poses.len() {
-            continue; // past the last update
+/// Error of the board's poses against the truth rows, as the poses come: the board's pose at a
+/// row's instant is interpolated between the two updates around it (the start pose before the
+/// first); a row past the last update is not scored.
+struct Scorer<I: Iterator<Item = (u64, Pose2)>> {
+    truth: std::iter::Peekable<I>,
+    period_ns: f64,
+    /// The last two poses (update `poses - 2` and `poses - 1`; the start is pose 0).
+    before: Pose2,
+    last: Pose2,
+    poses: usize,
+    final_error: Option<f64>,
+    max: f64,
+    rows: usize,
+}
+
+impl<I: Iterator<Item = (u64, Pose2)>> Scorer<I> {
+    /// `truth` rows (ns from the start, in order) against updates every `period_us`.
+    fn new(truth: I, period_us: u32, start: Pose2) -> Self {
+        Scorer {
+            truth: truth.peekable(),
+            period_ns: period_us as f64 * 1e3,
+            before: start,
+            last: start,
+            poses: 1,
+            final_error: None,
+            max: 0.0,
+            rows: 0,
         }
-        let a = poses[i.min(poses.len() - 1)];
-        let b = poses[(i + 1).min(poses.len() - 1)];
-        let f = k - k.floor();
-        let est = Pose2::new(a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f, a.theta);
-        let e = est.distance_to(truth);
-        max = max.max(e);
-        last = Some(e);
     }
-    (last, last.map(|_| max))
+
+    /// The pose of the next update.
+    fn push(&mut self, pose: Pose2) {
+        self.before = self.last;
+        self.last = pose;
+        self.poses += 1;
+        // Rows between the two last poses (the earlier ones were scored at the pose before).
+        self.score_until(self.poses - 1, true);
+    }
+
+    /// Score the rows before pose `end`'s instant, between the last two poses (else at the
+    /// last pose).
+    fn score_until(&mut self, end: usize, between: bool) {
+        while let Some(&(t_ns, truth)) = self.truth.peek() {
+            let k = t_ns as f64 / self.period_ns;
+            if k.floor() as usize >= end {
+                return;
+            }
+            self.truth.next();
+            let (a, b) = if between {
+                (self.before, self.last)
+            } else {
+                (self.last, self.last)
+            };
+            let f = k - k.floor();
+            let est = Pose2::new(a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f, a.theta);
+            let e = est.distance_to(truth);
+            self.max = self.max.max(e);
+            self.final_error = Some(e);
+            self.rows += 1;
+        }
+    }
+
+    /// The final and largest error, and the rows scored; the rows up to the next period after
+    /// the last update are scored at its pose.
+    fn finish(mut self) -> (Option<f64>, Option<f64>, usize) {
+        self.score_until(self.poses, false);
+        (
+            self.final_error,
+            self.final_error.map(|_| self.max),
+            self.rows,
+        )
+    }
 }
 
 /// Used by the CLI: the robot's layout or a clear error.

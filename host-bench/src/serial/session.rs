@@ -156,6 +156,12 @@ pub fn method_of(a: OdometryAlgorithm) -> Method {
 
 /// Switch the slave's odometry method and its sensor source (which restarts odometry at the
 /// origin and both streams at zero), confirmed by the board.
+///
+/// The board shows only which source it reads, not which command set it: a board already
+/// reading `source` (left so by a play that was interrupted) would look switched before it
+/// had even received the command, its old streams still running. So it is switched to another
+/// source first (one of its own sensors, with nothing reported): then
+/// seeing `source` means this command was applied.
 pub fn set_method_and_source(
     link: &mut Link,
     method: Method,
@@ -163,6 +169,24 @@ pub fn set_method_and_source(
     reports: Reports,
     start: protocol::Pose,
 ) -> Result<BoardInfo> {
+    if info(link)?.source == source {
+        let other = if source == SensorSource::Ticks {
+            SensorSource::Counts
+        } else {
+            SensorSource::Ticks
+        };
+        let away = SlaveCommand::SetSource {
+            source: other,
+            reports: Reports::Off,
+            start,
+        };
+        send_until(
+            link,
+            &[away],
+            &format!("the slave did not switch away from {source:?}"),
+            |i| i.source == other,
+        )?;
+    }
     let alg = wire_algorithm(method);
     let commands = [
         SlaveCommand::SetAlgorithm(alg),

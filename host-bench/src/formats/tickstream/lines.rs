@@ -29,7 +29,10 @@ mod tests {
                     0,truth,,,0,0,0\n# b\n,,,\n\"\",\"\"\n1,tick,0,1,,,\n2,tick,1,1,,,\n\n\
                     3,truth,,,0,0,0\n";
         let (stream, lines) =
-            super::super::read::parse_with_lines(text.as_bytes(), Path::new("t.csv")).unwrap();
+            super::super::read::parse_with_lines(text.as_bytes(), Path::new("t.csv"), &mut |_| {
+                Ok(())
+            })
+            .unwrap();
         assert_eq!(
             stream,
             read_from(text.as_bytes(), Path::new("t.csv")).unwrap()

@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 
 pub use event::Event;
 pub use lines::Lines;
-pub use read::{read, read_from, read_with_lines};
+pub use read::{read, read_checked, read_from, read_with_lines, RowCheck};
 pub use write::write;
 
 mod event;

@@ -5,9 +5,9 @@ use std::path::Path;
 
 use super::row::{parse_header, parse_row, shown, split_fields, Header};
 use super::{
-    is_gz_name, Lines, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX, MAX_EVENTS,
-    MAX_KEPT_COMMENTS, MAX_KEPT_COMMENT_BYTES, MAX_LINE_BYTES, MAX_OTHER_LINES, READ_BUFFER_BYTES,
-    UTF8_BOM,
+    is_gz_name, Event, Lines, ReadError, TickStream, COLUMNS, GZIP_MAGIC, MAGIC, MAGIC_PREFIX,
+    MAX_EVENTS, MAX_KEPT_COMMENTS, MAX_KEPT_COMMENT_BYTES, MAX_LINE_BYTES, MAX_OTHER_LINES,
+    READ_BUFFER_BYTES, UTF8_BOM,
 };
 use flate2::read::MultiGzDecoder;
 
@@ -17,8 +17,22 @@ pub fn read(path: &Path) -> Result<TickStream, ReadError> {
     read_with_lines(path).map(|(stream, _)| stream)
 }
 
+/// What a command asks of every row beyond the format (`play`: a span it can play), checked as
+/// the row is read, so that its error names the row's line.
+pub type RowCheck<'a> = &'a mut dyn FnMut(&Event) -> Result<(), String>;
+
+/// [`read`], with `check` run on every row as it is read: a row it refuses is an error at its
+/// line, and reading stops there.
+pub fn read_checked(path: &Path, check: RowCheck) -> Result<TickStream, ReadError> {
+    read_lines_checked(path, check).map(|(stream, _)| stream)
+}
+
 /// [`read`], and where each event was in the file, for errors found after reading.
 pub fn read_with_lines(path: &Path) -> Result<(TickStream, Lines), ReadError> {
+    read_lines_checked(path, &mut |_| Ok(()))
+}
+
+fn read_lines_checked(path: &Path, check: RowCheck) -> Result<(TickStream, Lines), ReadError> {
     let file = crate::formats::bounded_file::open_stream(path).map_err(|e| ReadError {
         path: path.to_path_buf(),
         line: None,
@@ -42,9 +56,13 @@ pub fn read_with_lines(path: &Path) -> Result<(TickStream, Lines), ReadError> {
     }
     if gzip_data {
         let decoder = MultiGzDecoder::new(input);
-        parse_with_lines(BufReader::with_capacity(READ_BUFFER_BYTES, decoder), path)
+        parse_with_lines(
+            BufReader::with_capacity(READ_BUFFER_BYTES, decoder),
+            path,
+            check,
+        )
     } else {
-        parse_with_lines(input, path)
+        parse_with_lines(input, path, check)
     }
 }
 
@@ -62,9 +80,10 @@ pub fn read_from(reader: impl Read, name_for_errors: &Path) -> Result<TickStream
         parse_with_lines(
             BufReader::with_capacity(READ_BUFFER_BYTES, decoder),
             name_for_errors,
+            &mut |_| Ok(()),
         )
     } else {
-        parse_with_lines(input, name_for_errors)
+        parse_with_lines(input, name_for_errors, &mut |_| Ok(()))
     };
     parsed.map(|(stream, _)| stream)
 }
@@ -121,6 +140,7 @@ const CR_ONLY: &str = "the line endings are CR alone (classic Mac OS): not suppo
 pub(super) fn parse_with_lines(
     mut input: impl BufRead,
     path: &Path,
+    check: RowCheck,
 ) -> Result<(TickStream, Lines), ReadError> {
     let mut p = Parser { path, line_no: 0 };
     let mut stream = TickStream::default();
@@ -248,6 +268,7 @@ pub(super) fn parse_with_lines(
                     }
                 }
                 last_t = Some((t, p.line_no));
+                check(&event).map_err(|m| p.error(m))?;
                 if stream.events.len() == MAX_EVENTS {
                     return Err(p.error(format!(
                         "more than {MAX_EVENTS} events: a stream is replayed in memory, so it \
