@@ -220,8 +220,8 @@ fn replay_scores_the_documented_python_example_with_every_method() {
     }
 }
 
-/// A run where no estimator applies names each reason and fails, rather than printing an
-/// empty table and exiting 0.
+/// A robot no estimator can run fails naming its file, the key and the reason, rather than
+/// printing an empty table and exiting 0.
 #[test]
 fn replay_that_scores_nothing_fails_with_the_reasons() {
     let dir = tempfile::tempdir().unwrap();
@@ -242,7 +242,7 @@ fn replay_that_scores_nothing_fails_with_the_reasons() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("no estimator can run"), "{stderr}");
+    assert!(stderr.contains("long-counts.toml: robot diff-drive: key `encoders`"), "{stderr}");
     assert!(stderr.contains("per count"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(out.stdout.is_empty());
