@@ -242,7 +242,10 @@ fn replay_that_scores_nothing_fails_with_the_reasons() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("long-counts.toml: robot diff-drive: key `encoders`"), "{stderr}");
+    assert!(
+        stderr.contains("long-counts.toml: robot diff-drive: key `encoders`"),
+        "{stderr}"
+    );
     assert!(stderr.contains("per count"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(out.stdout.is_empty());
