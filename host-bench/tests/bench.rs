@@ -6,53 +6,17 @@
 //! count and the motion changing abruptly between constant twists: not what `generate` makes.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 use firmware_slave::played::PlayKind;
 use host_bench::formats::robot::Robot;
 use host_bench::formats::tickstream::{self, Event, TickStream};
-use host_bench::serial::link::Link;
 use host_bench::serial::{play, record};
 use host_bench::sim::virtual_board;
 use robot_math::odometry::Method;
 
-/// A virtual board on its own thread, stopped when dropped.
-struct Board {
-    port: String,
-    stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
-
-impl Board {
-    fn start(opts: virtual_board::Options) -> Board {
-        let (pty, slave_end, port) = virtual_board::open_pty().expect("pty");
-        let stop = Arc::new(AtomicBool::new(false));
-        let s = stop.clone();
-        let thread = std::thread::spawn(move || {
-            let _keep = slave_end;
-            virtual_board::serve(pty, &opts, &|| s.load(Ordering::Relaxed)).expect("serve");
-        });
-        Board {
-            port,
-            stop,
-            thread: Some(thread),
-        }
-    }
-
-    fn link(&self) -> Link {
-        Link::open(&self.port, 115_200).expect("open pty")
-    }
-}
-
-impl Drop for Board {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
+#[path = "common/board.rs"]
+mod board;
+use board::Board;
 
 const OMNI: &str = r#"
 format = "omnibench robot v1"

@@ -162,15 +162,7 @@ pub fn score(file: &Path, stream: &TickStream) -> Result<Option<BoardScore>> {
     let truth: Vec<u32> = (0..stream.events.len() as u32)
         .filter(|&i| matches!(stream.events[i as usize], Event::Truth { .. }))
         .collect();
-    let truth_at = |k: usize| match stream.events[truth[k] as usize] {
-        Event::Truth {
-            t_ns,
-            x_m,
-            y_m,
-            theta_rad,
-        } => Some((t_ns, Pose2::new(x_m, y_m, theta_rad))),
-        _ => None, // only truth rows are listed
-    };
+    let truth_at = |k: usize| stream.events[truth[k] as usize].truth(); // only truth rows listed
     let (mut rows, mut last, mut max) = (0usize, None, 0.0f64);
     // The first scored pose: the board's and the truth's there.
     let mut anchor: Option<(Pose2, Pose2)> = None;

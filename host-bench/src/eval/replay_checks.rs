@@ -5,7 +5,6 @@
 
 use anyhow::{bail, Result};
 use robot_math::se2::wrap_angle;
-use robot_math::Pose2;
 
 use super::replay::Mode;
 use crate::formats::robot::Robot;
@@ -82,15 +81,7 @@ pub fn check_event(robot: &Robot, n: usize, event: &Event) -> Result<(), String>
 /// perfect 0 mm), and with counts a sample before the last truth row (else every update is
 /// one made for a truth row, not the counts rate).
 pub fn check_scorable(stream: &TickStream, mode: Mode) -> Result<()> {
-    let mut truth = stream.events.iter().filter_map(|e| match *e {
-        Event::Truth {
-            t_ns,
-            x_m,
-            y_m,
-            theta_rad,
-        } => Some((t_ns, Pose2::new(x_m, y_m, theta_rad))),
-        _ => None,
-    });
+    let mut truth = stream.events.iter().filter_map(Event::truth);
     let Some((first_t, mut last)) = truth.next() else {
         bail!("the stream has no truth rows: nothing to score against");
     };

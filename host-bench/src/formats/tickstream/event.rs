@@ -25,4 +25,17 @@ impl Event {
             Event::Tick { t_ns, .. } | Event::Abs { t_ns, .. } | Event::Truth { t_ns, .. } => t_ns,
         }
     }
+
+    /// A truth row's time and pose; `None` for the other rows.
+    pub fn truth(&self) -> Option<(u64, robot_math::Pose2)> {
+        match *self {
+            Event::Truth {
+                t_ns,
+                x_m,
+                y_m,
+                theta_rad,
+            } => Some((t_ns, robot_math::Pose2::new(x_m, y_m, theta_rad))),
+            _ => None,
+        }
+    }
 }
