@@ -25,7 +25,7 @@ use robot_math::wheelset::WheelSolver;
 use robot_math::Pose2;
 use serde::Serialize;
 
-use super::replay_checks::{check_counts_rate, check_event, check_scorable};
+use super::replay_checks::{check_counts_rate, check_events, check_scorable};
 use crate::formats::robot::Robot;
 use crate::formats::tickstream::{Event, TickStream};
 
@@ -254,6 +254,9 @@ fn replay_tracked(
     mode: Mode,
     keep_track: bool,
 ) -> Result<Score> {
+    // Once, before the walk: every row one the robot can have made (`replay` names the line
+    // first; other callers get the same message).
+    check_events(robot, stream).map_err(|e| anyhow::Error::msg(e.message))?;
     check_scorable(stream, mode)?;
     let (mut estimator, n) = estimator(robot, stream, algorithm, mode)?;
     let est = estimator.as_mut();
@@ -400,7 +403,6 @@ fn drive(
         let mut j = i;
         let mut ticked = false;
         while j < events.len() && events[j].t_ns() == t {
-            check_event(robot, n, &events[j]).map_err(anyhow::Error::msg)?;
             if let Event::Tick { encoder, step, .. } = events[j] {
                 let e = encoder as usize;
                 robot_math::ticks::tick_wheel(&mut wheels[..n], e, t, step);

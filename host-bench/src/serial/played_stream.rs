@@ -18,6 +18,7 @@ use anyhow::{anyhow, bail, Result};
 use protocol::events::{encode_sample, Event, EventEncoder, Sample, Step};
 use robot_math::Pose2;
 
+use crate::eval::replay_checks::check_event;
 use crate::formats::robot::Robot;
 use crate::formats::tickstream::{Event as Row, TickStream};
 use firmware_slave::played::PlayKind;
@@ -62,21 +63,8 @@ pub fn check_rows(stream: &TickStream, robot: &Robot) -> Result<()> {
     let mut span = span_check();
     for (i, row) in stream.events.iter().enumerate() {
         span(row).map_err(|m| anyhow!("event {}: {m}", i + 1))?;
-        match *row {
-            Row::Tick { encoder, t_ns, .. } if encoder as usize >= encoders => bail!(
-                "event {} (t = {t_ns} ns): a tick of encoder {encoder}, but the robot has \
-                 {encoders} encoders",
-                i + 1
-            ),
-            Row::Abs {
-                encoder,
-                code,
-                t_ns,
-            } => {
-                robot.abs_reading(encoder, code, t_ns)?;
-            }
-            _ => {}
-        }
+        // `replay`'s own check of what the robot can have made.
+        check_event(robot, encoders, row).map_err(|m| anyhow!("event {}: {m}", i + 1))?;
     }
     if !stream.events.iter().any(|e| matches!(e, Row::Tick { .. })) {
         // The board would compute nothing: "0 of 0 updates bit-exact" is no result (replay
@@ -220,18 +208,10 @@ impl<'a> PlayedStream<'a> {
 
     /// The truth rows, time in ns from the stream's start.
     pub fn truth(&self) -> impl Iterator<Item = (u64, Pose2)> + '_ {
-        self.rows.iter().filter_map(|r| match *r {
-            Row::Truth {
-                t_ns,
-                x_m,
-                y_m,
-                theta_rad,
-            } => Some((
-                t_ns.saturating_sub(self.t0),
-                Pose2::new(x_m, y_m, theta_rad),
-            )),
-            _ => None,
-        })
+        self.rows
+            .iter()
+            .filter_map(Row::truth)
+            .map(|(t_ns, pose)| (t_ns.saturating_sub(self.t0), pose))
     }
 
     /// The bytes, from the first.

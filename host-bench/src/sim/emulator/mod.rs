@@ -424,6 +424,15 @@ pub fn run_logged(
     let goal = reference.at(motion_s).position;
     let distance_to_goal = (end_point.0 - goal.0).hypot(end_point.1 - goal.1);
     let status = master_shared.with(|c| c.status()).unwrap_or(0);
+    // What each way's noise injected and the copy of its receiver's decoder refused (none on
+    // a quiet line).
+    let noise_counts = |n: &Option<Rc<RefCell<SerialNoise>>>| {
+        n.as_ref()
+            .map(|n| (n.borrow().injected, n.borrow().rejected))
+            .unwrap_or_default()
+    };
+    let (to_master_noise, to_host_noise) =
+        (noise_counts(&noise_to_master), noise_counts(&noise_to_host));
     let slave_frame = slave_shared.frame();
     if slave_frame.status & protocol::spi::slave_status::ALGORITHM_UNSUPPORTED != 0 {
         bail!(
@@ -467,18 +476,10 @@ pub fn run_logged(
         spi_injected: wire.borrow().injected,
         spi_rejected_kinds_master: wire.borrow().rejected_by_master,
         spi_rejected_kinds_slave: wire.borrow().rejected_by_slave,
-        serial_injected_to_master: noise_to_master
-            .as_ref()
-            .map_or_else(Default::default, |n| n.borrow().injected),
-        serial_injected_to_host: noise_to_host
-            .as_ref()
-            .map_or_else(Default::default, |n| n.borrow().injected),
-        serial_rejected_kinds_master: noise_to_master
-            .as_ref()
-            .map_or_else(Default::default, |n| n.borrow().rejected),
-        serial_rejected_kinds_host: noise_to_host
-            .as_ref()
-            .map_or_else(Default::default, |n| n.borrow().rejected),
+        serial_injected_to_master: to_master_noise.0,
+        serial_injected_to_host: to_host_noise.0,
+        serial_rejected_kinds_master: to_master_noise.1,
+        serial_rejected_kinds_host: to_host_noise.1,
         master_view_of_slave_m: master_view.map(|f| {
             let (x, y) = protocol::Point {
                 x_um: f.pose.x_um,
