@@ -59,6 +59,14 @@ pub struct EncoderEdge {
     pub levels: u8,
 }
 
+/// A microsecond time's low 32 bits (how the board queues an edge's time: 8 bytes an edge,
+/// not 16) made whole again against `now_us`, a time read after it: exact while the edge is
+/// less than 2³² µs (71.6 minutes) older than `now_us`; queued edges are milliseconds old.
+pub fn widen_us(low: u32, now_us: u64) -> u64 {
+    let age = (now_us as u32).wrapping_sub(low);
+    now_us.saturating_sub(age as u64)
+}
+
 /// What one [`EncoderEdges::drain`] handed over.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct EdgeBatch {
@@ -147,7 +155,16 @@ impl UpdateCycles {
 
 #[cfg(test)]
 mod tests {
-    use super::UpdateCycles;
+    use super::{widen_us, UpdateCycles};
+
+    #[test]
+    fn a_queued_edge_time_is_made_whole_across_the_32_bit_wrap() {
+        for edge in [0u64, 5, (1 << 32) - 3, 1 << 32, (7 << 32) + 123_456] {
+            for age in [0u64, 1, 999, (1 << 32) - 1] {
+                assert_eq!(widen_us(edge as u32, edge + age), edge, "{edge} {age}");
+            }
+        }
+    }
 
     #[test]
     fn update_cycles_keep_the_fewest_the_most_and_the_mean() {

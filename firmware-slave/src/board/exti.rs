@@ -19,16 +19,25 @@ use embassy_stm32::pac::{self, interrupt};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
-use firmware_slave::ports::{EdgeBatch, EncoderEdge, EncoderEdges, MEASURING_WHEELS};
+use firmware_slave::ports::{widen_us, EdgeBatch, EncoderEdge, EncoderEdges, MEASURING_WHEELS};
 
 const LEFT: u32 = 0b11; // lines 0, 1
 const RIGHT: u32 = 0b11 << 8; // lines 8, 9
 const ENCODER_LINES: u32 = LEFT | RIGHT;
 const NSS_LINE: u32 = 1 << 4;
 
+/// An edge as queued: its time's low 32 bits only (8 bytes, not [`EncoderEdge`]'s 16: the
+/// queue is the slave's largest buffer); [`widen_us`] makes it whole at the drain.
+#[derive(Clone, Copy)]
+struct QueuedEdge {
+    t_us: u32,
+    encoder: u8,
+    levels: u8,
+}
+
 /// Edges between two odometry updates: at 1 kHz and 0.6 m/s a 32.7 µm-count wheel makes about
 /// 20 edges per update, so 256 leaves room for fast motion and a late update.
-static EDGES: Channel<CriticalSectionRawMutex, EncoderEdge, 256> = Channel::new();
+static EDGES: Channel<CriticalSectionRawMutex, QueuedEdge, 256> = Channel::new();
 static EDGES_LOST: AtomicBool = AtomicBool::new(false);
 static NSS_ROSE: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
@@ -69,14 +78,14 @@ fn encoder_levels() -> [u8; MEASURING_WHEELS] {
 }
 
 fn on_encoder_edge(lines: u32) {
-    let t_us = embassy_time::Instant::now().as_micros();
+    let t_us = embassy_time::Instant::now().as_micros() as u32;
     // Clear first: an edge arriving while this runs pends again instead of being lost.
     pac::EXTI.pr(0).write(|w| w.0 = lines);
     let levels = encoder_levels();
     for (encoder, mask) in [(0u8, LEFT), (1u8, RIGHT)] {
         if lines & mask != 0
             && EDGES
-                .try_send(EncoderEdge {
+                .try_send(QueuedEdge {
                     t_us,
                     encoder,
                     levels: levels[encoder as usize],
@@ -149,11 +158,18 @@ impl EncoderEdges for EdgeCapture {
                 })
             })
         });
-        // Only the edges up to the cut: later ones stay queued for the next drain.
-        let take = cut.map_or(usize::MAX, |(queued, _)| queued);
+        // Only the edges up to the cut (or, without one, those queued now): later ones stay
+        // queued for the next drain. The clock is read after they were counted, so every one
+        // of them is older than `now_us`, as `widen_us` needs.
+        let take = cut.map_or_else(|| EDGES.len(), |(queued, _)| queued);
+        let now_us = embassy_time::Instant::now().as_micros();
         for _ in 0..take {
             match EDGES.try_receive() {
-                Ok(e) => f(e),
+                Ok(e) => f(EncoderEdge {
+                    t_us: widen_us(e.t_us, now_us),
+                    encoder: e.encoder,
+                    levels: e.levels,
+                }),
                 Err(_) => break,
             }
         }

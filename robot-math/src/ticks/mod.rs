@@ -23,7 +23,10 @@
 //!
 //! Integer-only: times in nanoseconds, positions in Q16 counts.
 
+mod recent;
 pub mod start;
+
+pub use recent::RecentTicks;
 
 use core::num::NonZeroU64;
 

@@ -1,0 +1,121 @@
+//! Ticks kept at the edge and put through their wheel's [`TickTracker`] at the next update.
+//!
+//! On the slave an edge should cost as little as possible (issue 11: ≤ 60 instructions; the
+//! edge interrupts of four wheels at several kHz each add up), while the tracker's own work
+//! per tick (its edge, its two intervals) is about 70. That work need not be done per tick:
+//! after any run of ticks a tracker's state depends on its count and on its **last three
+//! ticks only** — its edge on the count and the last step, its interval on the last two
+//! ticks' times and directions, its interval before that on the last three's. So the edge
+//! only keeps its time and step in a four-slot ring, and [`TickTracker::catch_up`] replays the
+//! last three (at most) when the wheel's position is next needed: bit for bit what ticking
+//! every one of them would have left, and at most three ticks' work per wheel per update
+//! however fast the wheel turns.
+//!
+//! Only for a wheel whose first ticks have placed it ([`TickTracker::placing`] false): while
+//! they are gathered every tick feeds the start fit, which needs each one.
+
+use super::TickTracker;
+
+/// One wheel's ticks since its tracker last caught up: a four-slot ring (a power of two, so
+/// the slot is a mask, not a division) of which the last three are used.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RecentTicks {
+    t_ns: [u64; 4],
+    steps: [i8; 4],
+    /// Ticks since the tracker caught up; the next goes to slot `waiting % 4`. A `u32` counted
+    /// without a saturating check (a saturating count costs the edge six instructions): it
+    /// would wrap after 2³² ticks of one wheel between two updates, which no encoder gives
+    /// (4·10¹² edges a second at 1 kHz) and no tick stream holds (the host reads at most 2²²
+    /// rows).
+    waiting: u32,
+    /// The wheel's first ticks have placed it: its ticks may wait here (kept by the owner, next
+    /// to the ring, so the edge reads one place).
+    pub open: bool,
+}
+
+impl RecentTicks {
+    /// A tick at `t_ns`, `step` ±1 (the caller has checked it).
+    #[inline(always)]
+    pub fn push(&mut self, t_ns: u64, step: i8) {
+        let k = (self.waiting & 3) as usize;
+        self.t_ns[k] = t_ns;
+        self.steps[k] = step;
+        self.waiting = self.waiting.wrapping_add(1);
+    }
+
+    /// True when ticks wait for the tracker.
+    #[inline(always)]
+    pub fn any(&self) -> bool {
+        self.waiting != 0
+    }
+}
+
+impl TickTracker {
+    /// Take in the ticks kept in `recent` since this tracker last saw one, `count` being the
+    /// wheel's count after all of them, and empty `recent`. Equal, bit for bit, to having
+    /// [`tick`](Self::tick)ed every one of them (see the module's comment for why). For a
+    /// wheel that is not [`placing`](Self::placing) any more. Integer-only.
+    pub fn catch_up(&mut self, count: i64, recent: &mut RecentTicks) {
+        let replayed = recent.waiting.min(3);
+        let first = recent.waiting.wrapping_sub(replayed);
+        // Emptied: the next tick goes to slot 0.
+        recent.waiting = 0;
+        // The count before the replayed ticks: their steps taken off the final count.
+        let mut before = count;
+        for i in 0..replayed {
+            before -= recent.steps[(first.wrapping_add(i) & 3) as usize] as i64;
+        }
+        self.count = before;
+        for i in 0..replayed {
+            let k = (first.wrapping_add(i) & 3) as usize;
+            // An earlier tick's interval, from a state older than its own tick before it, is
+            // overwritten by the next two: only the last three ticks' intervals survive.
+            self.advance(recent.t_ns[k], recent.steps[k]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// A tracker caught up at random instants equals one that saw every tick: random
+        /// steps (reversals, runs), random intervals (including equal times), any start.
+        #[test]
+        fn catching_up_equals_ticking_every_tick(
+            start in -1000i64..1000,
+            ticks in proptest::collection::vec(
+                (0u64..5_000, prop_oneof![Just(1i8), Just(-1i8)], proptest::bool::weighted(0.2)),
+                0..400,
+            ),
+        ) {
+            let mut every = TickTracker::starting(start, 50);
+            let mut deferred = every;
+            let mut recent = RecentTicks::default();
+            let (mut t, mut count) = (100u64, start);
+            for (dt, step, update_here) in ticks {
+                t += dt;
+                count += step as i64;
+                every.tick(t, step);
+                if deferred.placing() {
+                    deferred.tick(t, step);
+                } else {
+                    recent.push(t, step);
+                }
+                if update_here {
+                    if recent.any() {
+                        deferred.catch_up(count, &mut recent);
+                    }
+                    prop_assert_eq!(deferred, every);
+                    prop_assert_eq!(deferred.position_q16(t + 37), every.position_q16(t + 37));
+                }
+            }
+            if recent.any() {
+                deferred.catch_up(count, &mut recent);
+            }
+            prop_assert_eq!(deferred, every);
+        }
+    }
+}
