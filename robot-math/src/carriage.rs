@@ -209,15 +209,20 @@ mod tests {
 /// [`CarriageOdometry`] in fixed point: the slave's default, integer-only on the update path.
 ///
 /// The carriage is a differential drive in its own frame (the axle solver of
-/// [`crate::wheelset`]) integrated by [`crate::exact::ExactOdometry`]; the body pose follows
-/// with integer trigonometry: θ = φ − β (β straight from the absolute code as a binary angle)
-/// and P = A + trail·(cos φ, sin φ). The constants are derived with floats once, by
-/// [`CarriageExact::new`] (at boot on the slave); [`CarriageExact::update`] uses integers only.
+/// [`crate::wheelset`]) integrated by [`crate::exact::ExactOdometry`], with its reference
+/// point at the **pivot**, not the axle: the pivot is a point of the rigid carriage `trail`
+/// ahead of the axle midpoint A, so it moves as A does plus trail·φ' sideways, and its
+/// per-count constants are the axle's with `ky += trail·kth` ([`Self::from_params`]). The
+/// exact step is exact for any point of a body moving at a constant twist, so this integrates
+/// the same model as P = A + trail·(cos φ, sin φ) — without the sine and cosine of φ and the
+/// two trail products every update (about 150 instructions on the M3). The body pose is then
+/// (P, θ = φ − β), β straight from the absolute code as a binary angle. The constants are
+/// derived with floats once, by [`CarriageExact::new`] (or arrive as integers:
+/// [`Self::from_params`]); [`CarriageExact::update`] uses integers only.
 #[derive(Clone, Copy, Debug)]
 pub struct CarriageExact {
-    carriage: crate::exact::ExactOdometry,
-    /// Trail in Q40 metres (the position unit of [`crate::exact::FixedPose`]).
-    trail: i64,
+    /// The pivot's pose (x, y) with the carriage's heading φ.
+    pivot: crate::exact::ExactOdometry,
     abs_bits: u8,
     body: crate::exact::FixedPose,
 }
@@ -248,7 +253,8 @@ impl CarriageExact {
     /// From the integer constants alone (no floats): the carriage axle's [`ExactParams`] (two
     /// encoders, left then right), the trail in Q40 metres and the absolute encoder's bits.
     /// Starts at `body` with the wheels at `counts_q16` and the swivel at position `abs_code`.
-    /// `None` for anything but two encoders or 1..=16 absolute bits.
+    /// `None` for anything but two encoders or 1..=16 absolute bits, or constants that moved
+    /// to the pivot leave the fixed-point range (a trail of kilometres).
     pub fn from_params(
         params: crate::exact::ExactParams,
         trail_q40: i64,
@@ -262,12 +268,11 @@ impl CarriageExact {
             return None;
         }
         let mut s = CarriageExact {
-            carriage: ExactOdometry::new(
-                params,
+            pivot: ExactOdometry::new(
+                pivot_params(params, trail_q40)?,
                 FixedPose::default(),
                 &[counts_q16[0], counts_q16[1], 0, 0],
             ),
-            trail: trail_q40,
             abs_bits,
             body: FixedPose::default(),
         };
@@ -286,40 +291,33 @@ impl CarriageExact {
         (high as u64) << 32
     }
 
-    fn dir(&self, phi: u64) -> (i64, i64) {
-        let (s, c) = crate::fixed::sin_cos((phi >> 32) as u32);
-        (
-            crate::fixed::mul_q30_wide(self.trail, c),
-            crate::fixed::mul_q30_wide(self.trail, s),
-        )
-    }
-
     /// Restart from this body pose at the current counts (a set-pose command).
     pub fn set_body(&mut self, body: crate::exact::FixedPose, abs_code: u16) {
-        let phi = body.theta.wrapping_add(self.swivel(abs_code));
-        let (tx, ty) = self.dir(phi);
-        self.carriage.set_pose(crate::exact::FixedPose {
-            x: body.x - tx,
-            y: body.y - ty,
-            theta: phi,
+        // The body's reference point is the pivot; the carriage heads φ = θ + β.
+        self.pivot.set_pose(crate::exact::FixedPose {
+            theta: body.theta.wrapping_add(self.swivel(abs_code)),
+            ..body
         });
         self.body = body;
     }
 
     /// One update with the cumulative counts and the absolute code. Integer-only.
     pub fn update(&mut self, counts: [i64; 2], abs_code: u16) -> crate::exact::FixedPose {
-        self.update_q16([counts[0] << 16, counts[1] << 16], abs_code)
+        self.update_q16(&[counts[0] << 16, counts[1] << 16, 0, 0], abs_code)
     }
 
     /// One update with the wheels' positions in Q16 counts (interpolated between ticks in
-    /// tick-timestamp mode). Integer-only.
-    pub fn update_q16(&mut self, q16: [i64; 2], abs_code: u16) -> crate::exact::FixedPose {
-        let c = self.carriage.update_q16(&[q16[0], q16[1], 0, 0]);
-        let (tx, ty) = self.dir(c.theta);
+    /// tick-timestamp mode; entries past the two measuring wheels are ignored). Integer-only.
+    /// Taken by reference and handed on as it is: building a new array was 12 instructions.
+    pub fn update_q16(
+        &mut self,
+        q16: &[i64; crate::exact::MAX_ENCODERS],
+        abs_code: u16,
+    ) -> crate::exact::FixedPose {
+        let p = self.pivot.update_q16(q16);
         self.body = crate::exact::FixedPose {
-            x: c.x + tx,
-            y: c.y + ty,
-            theta: c.theta.wrapping_sub(self.swivel(abs_code)),
+            theta: p.theta.wrapping_sub(self.swivel(abs_code)),
+            ..p
         };
         self.body
     }
@@ -327,6 +325,28 @@ impl CarriageExact {
     pub fn body(&self) -> crate::exact::FixedPose {
         self.body
     }
+}
+
+/// The carriage axle's constants for its pivot, `trail_q40` ahead of the axle midpoint: a
+/// point of a rigid body at (trail, 0) from A moves at v_A + ω × (trail, 0), that is with
+/// trail·ω more to the left. Per count: `ky += trail · kth`, in the constants' units
+/// (Q40 m × 2^-48 turn × 2π rad/turn → Q44 m: trail · kth · 2π / 2^44, with 2π as
+/// `PI_Q29` = 2π · 2^28, so a shift of 72 in all). Integer-only (the slave builds it from the
+/// master's constants); `None` past the fixed-point range.
+pub(crate) fn pivot_params(
+    axle: crate::exact::ExactParams,
+    trail_q40: i64,
+) -> Option<crate::exact::ExactParams> {
+    use crate::exact::{ExactParams, MAX_ENCODERS};
+    /// round(π · 2^29) = round(2π · 2^28).
+    const TWO_PI_Q28: i128 = 1_686_629_713;
+    let (kx, mut ky, kth) = (axle.kx(), axle.ky(), axle.kth());
+    for j in 0..MAX_ENCODERS {
+        // |trail| < 2^47 (`Layout`), |kth| < 2^46 (`ExactParams`): below 2^124, no overflow.
+        let side = (trail_q40 as i128 * kth[j] as i128 * TWO_PI_Q28 + (1 << 71)) >> 72;
+        ky[j] = ky[j].checked_add(i64::try_from(side).ok()?)?;
+    }
+    ExactParams::from_raw(axle.encoders(), kx, ky, kth).ok()
 }
 
 #[cfg(test)]

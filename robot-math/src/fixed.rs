@@ -30,18 +30,28 @@ pub fn mul_q31(a: i32, b: i32) -> i32 {
 const S: [i32; 4] = [-357_913_941, 17_895_697, -426_088, 5_918];
 const C: [i32; 5] = [-1_073_741_824, 89_478_485, -2_982_616, 53_261, -592];
 
-/// sin and cos of x in [0, π/4], x in Q31, results in Q31.
-fn sin_cos_octant(x: i32) -> (i64, i64) {
-    let x2 = mul_q31(x, x);
-    let s = S[2] + mul_q31(x2, S[3]);
-    let s = S[1] + mul_q31(x2, s);
-    let s = S[0] + mul_q31(x2, s);
-    let sin = x as i64 + mul_q31(x, mul_q31(x2, s)) as i64;
-    let c = C[3] + mul_q31(x2, C[4]);
-    let c = C[2] + mul_q31(x2, c);
-    let c = C[1] + mul_q31(x2, c);
-    let c = C[0] + mul_q31(x2, c);
-    let cos = (1i64 << 31) + mul_q31(x2, c) as i64;
+/// sin and cos of x in [0, π/4], x in Q31, results in Q30, rounded from Q31 (half up).
+///
+/// Horner's form on −x² and the negated partial sums: each product (−x²)·(−p) is x²·p exactly,
+/// so the results are those of the plain form to the bit. Why: LLVM knows x² ≥ 0 and widens
+/// it as unsigned, which makes each product an unsigned multiply plus a sign fix-up (and at
+/// "z" an outlined call); −x² ≤ 0 must be widened as signed, and each product is one `smull`.
+fn sin_cos_octant(x: i32) -> (i32, i32) {
+    let nx2 = -mul_q31(x, x);
+    // n_k = −(S[k] + x²·s_{k+1}) = −S[k] − (−x²)·(−s_{k+1}).
+    let n = -S[2] - mul_q31(nx2, -S[3]);
+    let n = -S[1] - mul_q31(nx2, n);
+    let n = -S[0] - mul_q31(nx2, n);
+    // x + x·x²·s in Q31, then to Q30: (v + 1) >> 1. In 32 bits: x < π/4 · 2^31 and the
+    // product is negative, so the sum stays below 2^31 (in 64 bits it cost 8 instructions).
+    let sin = (x + mul_q31(x, mul_q31(nx2, n)) + 1) >> 1;
+    let n = -C[3] - mul_q31(nx2, -C[4]);
+    let n = -C[2] - mul_q31(nx2, n);
+    let n = -C[1] - mul_q31(nx2, n);
+    let n = -C[0] - mul_q31(nx2, n);
+    // (2^31 + m + 1) >> 1 = 2^30 + ((m + 1) >> 1) exactly (2^31 is even), and m = −x²·c
+    // is above −2^30: all in 32 bits, although cos 0 = 2^31 does not fit them in Q31.
+    let cos = (1 << 30) + ((mul_q31(nx2, n) + 1) >> 1);
     (sin, cos)
 }
 
@@ -55,12 +65,13 @@ pub fn sin_cos(angle: u32) -> (i32, i32) {
     } else {
         (1 << 29) - within
     };
-    // Radians in Q31: t / 2^29 · π/4 · 2^31 = t · π (at most π/4 · 2^31 < 2^31).
-    let x = ((t * PI_Q29 + (1 << 28)) >> 29) as i32;
+    // Radians in Q31: t / 2^29 · π/4 · 2^31 = t · π (at most π/4 · 2^31 < 2^31), that is
+    // `(p >> 29) as i32` for the product p. Taken from p's two words by hand: written as a
+    // shift, LLVM kept the (zero) upper word and made x² a 64-bit multiply.
+    let p = (t * PI_Q29 + (1 << 28)) as u64;
+    let x = (((p >> 32) as u32) << 3 | (p as u32) >> 29) as i32;
+    // Q30 in 32 bits: the octant's signs and swaps move 32-bit values, not 64-bit pairs.
     let (s, c) = sin_cos_octant(x);
-    // Q31 -> Q30, which fits 32 bits (cos 0 = 2^31 in Q31 does not): the octant's signs
-    // and swaps then move 32-bit values, not 64-bit pairs.
-    let (s, c) = (((s + 1) >> 1) as i32, ((c + 1) >> 1) as i32);
     match octant {
         0 => (s, c),
         1 => (c, s),

@@ -596,10 +596,14 @@ mod tests {
                 Twist::new(0.3 * t.cos(), 0.4, 0.2 * (2.0 * t).sin()),
             ));
             p.advance(1e-3, 1e-4);
-            let q16: [i64; 2] =
-                core::array::from_fn(|j| (p.state.rolled[j] / k[j] * 65536.0).round() as i64);
-            est8 = slave8.update_q16(q16, g8.abs_code(p.swivel())).to_pose2();
-            est16 = slave16.update_q16(q16, g16.abs_code(p.swivel())).to_pose2();
+            let q16: [i64; 4] = core::array::from_fn(|j| match j {
+                0 | 1 => (p.state.rolled[j] / k[j] * 65536.0).round() as i64,
+                _ => 0,
+            });
+            est8 = slave8.update_q16(&q16, g8.abs_code(p.swivel())).to_pose2();
+            est16 = slave16
+                .update_q16(&q16, g16.abs_code(p.swivel()))
+                .to_pose2();
             worst = worst.max(est8.distance_to(p.body()));
         }
         let truth = p.body();

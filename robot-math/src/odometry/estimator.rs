@@ -269,27 +269,25 @@ impl Odometry {
         core::array::from_fn(|j| self.position_q16(j, t_ns))
     }
 
-    /// [`Self::positions_q16`] into `self.positions`, in place (the update's way).
+    /// [`Self::positions_q16`] into `self.positions`, in place (the update's way). Counts mode
+    /// has them already (`set_counts` keeps them): the check is inlined so that costs no call.
+    #[inline(always)]
     fn refresh_positions(&mut self, t_ns: u64) {
+        if self.sensors == SensorKind::Ticks {
+            self.interpolate_positions(t_ns);
+        }
+    }
+
+    /// Ticks mode's positions: each wheel's waiting ticks caught up, then interpolated to `t_ns`.
+    fn interpolate_positions(&mut self, t_ns: u64) {
         let n = self.layout.encoders().min(MAX_ENCODERS);
         let out = &mut self.positions[..n];
-        // The sensor kind decided once, not per wheel.
-        match self.sensors {
-            SensorKind::Ticks => {
-                let wheels = self.trackers.iter_mut().zip(&mut self.recent);
-                for ((p, (tracker, recent)), &count) in out.iter_mut().zip(wheels).zip(&self.counts)
-                {
-                    if recent.any() {
-                        tracker.catch_up(count, recent);
-                    }
-                    *p = tracker.position_q16(t_ns);
-                }
+        let wheels = self.trackers.iter_mut().zip(&mut self.recent);
+        for ((p, (tracker, recent)), &count) in out.iter_mut().zip(wheels).zip(&self.counts) {
+            if recent.any() {
+                tracker.catch_up(count, recent);
             }
-            SensorKind::Counts => {
-                for (p, &count) in out.iter_mut().zip(&self.counts) {
-                    *p = count.wrapping_shl(16);
-                }
-            }
+            *p = tracker.position_q16(t_ns);
         }
     }
 
@@ -383,8 +381,12 @@ impl Odometry {
             return;
         }
         let n = self.layout.encoders().min(MAX_ENCODERS);
-        for (c, &new) in self.counts[..n].iter_mut().zip(counts) {
+        // The positions `exact` reads with them, in the same loop (a second pass at the update
+        // was 40 instructions).
+        let wheels = self.counts[..n].iter_mut().zip(&mut self.positions);
+        for ((c, p), &new) in wheels.zip(counts) {
             *c = new;
+            *p = new.wrapping_shl(16);
         }
     }
 
@@ -413,7 +415,7 @@ impl Odometry {
         if let State::Exact(e) = &mut self.state {
             self.pose = match e {
                 ExactState::Body(o) => o.update_q16(q),
-                ExactState::Carriage(c) => c.update_q16([q[0], q[1]], self.abs),
+                ExactState::Carriage(c) => c.update_q16(q, self.abs),
             };
         }
         self.pose
@@ -469,7 +471,7 @@ impl Odometry {
                     o.set_pose(pose);
                 }
                 ExactState::Carriage(c) => {
-                    c.update_q16([q[0], q[1]], self.abs);
+                    c.update_q16(q, self.abs);
                     c.set_body(pose, self.abs);
                 }
             }

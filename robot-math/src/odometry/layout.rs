@@ -125,7 +125,7 @@ impl fmt::Display for LayoutError {
                 )
             }
             LayoutError::CarriageTrail => {
-                write!(f, "the carriage trail is not finite or too large")
+                write!(f, "the carriage trail is not finite or not under 128 m")
             }
             LayoutError::AbsBits(b) => {
                 write!(f, "absolute encoder: {b} bits, expected 1 to 16")
@@ -150,6 +150,10 @@ pub struct Layout {
     carriage: Option<CarriageLayout>,
     abs: Option<AbsLayout>,
 }
+
+/// A carriage trail must be under 2^47 Q40 units, 128 m (robot files allow 10 m): the
+/// fixed-point carriage moves its constants to the pivot with 128-bit products of it.
+pub const MAX_TRAIL_Q40: i64 = 1 << 47;
 
 const NO_WHEEL: Wheel = Wheel {
     x: 0.0,
@@ -187,8 +191,7 @@ impl Layout {
             None => None,
             Some(trail_m) => {
                 let q40 = trail_m * crate::exact::FixedPose::METRE as f64;
-                // 2^60 Q40 units is about a million metres: anything past it is a mistake.
-                if !q40.is_finite() || libm::fabs(q40) >= (1u64 << 60) as f64 {
+                if !q40.is_finite() || libm::fabs(q40) >= MAX_TRAIL_Q40 as f64 {
                     return Err(LayoutError::CarriageTrail);
                 }
                 Some(CarriageLayout {
@@ -244,7 +247,11 @@ impl Layout {
             if abs.is_none() {
                 return Err(LayoutError::CarriageNeedsAbsoluteEncoder);
             }
-            if !c.trail_m.is_finite() {
+            // The pivot's constants (what the fixed-point carriage integrates) must fit too.
+            if !c.trail_m.is_finite()
+                || c.trail_q40.unsigned_abs() >= MAX_TRAIL_Q40 as u64
+                || crate::carriage::pivot_params(exact, c.trail_q40).is_none()
+            {
                 return Err(LayoutError::CarriageTrail);
             }
         }
