@@ -201,8 +201,15 @@ pub fn set_method_and_source(
         &commands,
         &format!(
             "the slave did not switch to `{}` reading {source:?} (a method this slave cannot run \
-             on this robot is refused: `host-bench replay` says why)",
-            method.name()
+             on this robot is refused: `host-bench replay` says why){}",
+            method.name(),
+            if method == Method::Exact {
+                ""
+            } else {
+                "; the float baselines are only in a slave image built with them: `cargo build \
+                 --release --target thumbv7m-none-eabi -p firmware-slave --features baselines`, \
+                 then `host-bench flash`"
+            }
         ),
         |i| i.source == source && i.algorithm == alg,
     )

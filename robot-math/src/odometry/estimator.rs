@@ -1,14 +1,17 @@
 //! [`Odometry`]: one estimator over a [`Layout`], any [`Method`], either [`SensorKind`].
 
 use super::{Layout, Method, SensorKind, Unsupported};
-use crate::arc::ArcOdometry;
 use crate::carriage::CarriageExact;
 use crate::exact::{ExactOdometry, FixedPose, MAX_ENCODERS};
-use crate::lut::LutOdometry;
-use crate::ticks::{counts_as_ticks, tick_wheel, RecentTicks, TickTracker};
-use crate::timing::TimingOdometry;
+use crate::ticks::{tick_wheel, RecentTicks, TickTracker};
 use crate::wheelset::GeometryError;
-use crate::Pose2;
+
+// The float baselines (`arc`, `lut`, `timing`): the host always has them; a slave image only
+// with its `baselines` feature (they are 10 KB of its flash, soft-float routines included).
+#[cfg(any(test, feature = "float-methods"))]
+mod float_methods;
+#[cfg(any(test, feature = "float-methods"))]
+use float_methods::FloatState;
 
 /// The running method's state. One at a time; the float methods are the big ones (their wheel
 /// solvers), which is RAM spent once, not per update.
@@ -16,9 +19,27 @@ use crate::Pose2;
 #[derive(Clone, Debug)]
 enum State {
     Exact(ExactState),
-    Arc(ArcOdometry),
-    Lut(Lut),
-    Timing(TimingOdometry),
+    #[cfg(any(test, feature = "float-methods"))]
+    Float(FloatState),
+}
+
+impl State {
+    /// `exact`'s state, if `exact` is the method running.
+    fn exact_mut(&mut self) -> Option<&mut ExactState> {
+        match self {
+            State::Exact(e) => Some(e),
+            #[cfg(any(test, feature = "float-methods"))]
+            State::Float(_) => None,
+        }
+    }
+
+    fn is_exact(&self) -> bool {
+        match self {
+            State::Exact(_) => true,
+            #[cfg(any(test, feature = "float-methods"))]
+            State::Float(_) => false,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -27,43 +48,6 @@ enum ExactState {
     Body(ExactOdometry),
     /// Seed 004's swivel carriage.
     Carriage(CarriageExact),
-}
-
-/// Seed 001's method and the counts it has seen (its input is ticks).
-#[derive(Clone, Debug)]
-struct Lut {
-    tables: LutTables,
-    applied: [i64; MAX_ENCODERS],
-}
-
-// Unboxed (no heap): only host builds have the big variant, and they have the memory.
-#[allow(clippy::large_enum_variant)]
-#[derive(Clone, Debug)]
-enum LutTables {
-    /// The paper's own method, for its differential drive (two 90-entry tables).
-    Differential(LutOdometry),
-    /// Its generalisation: 360-entry tables per wheel (host builds only).
-    #[cfg(feature = "lut-n")]
-    Wheels(crate::lut::LutN),
-}
-
-impl LutTables {
-    fn tick(&mut self, encoder: usize, step: i8) {
-        match self {
-            // Wheel 0 is the left wheel in both conventions.
-            LutTables::Differential(l) => l.tick(encoder as u8, step),
-            #[cfg(feature = "lut-n")]
-            LutTables::Wheels(l) => l.tick(encoder, step),
-        }
-    }
-
-    fn pose(&self) -> Pose2 {
-        match self {
-            LutTables::Differential(l) => l.pose(),
-            #[cfg(feature = "lut-n")]
-            LutTables::Wheels(l) => l.pose(),
-        }
-    }
 }
 
 /// One odometry estimator: a [`Layout`], the running [`Method`], the sensor readings.
@@ -167,7 +151,7 @@ impl Odometry {
     /// Run `state` from now on. Only `exact` lets ticks wait for the update: the float
     /// methods take each tick as it comes (their state after a tick depends on every tick).
     fn set_state(&mut self, state: State) {
-        self.keep_edges = matches!(state, State::Exact(_)) && self.sensors == SensorKind::Ticks;
+        self.keep_edges = state.is_exact() && self.sensors == SensorKind::Ticks;
         self.state = state;
     }
 
@@ -175,8 +159,6 @@ impl Odometry {
     fn build(&self, method: Method, body: FixedPose, t_ns: u64) -> Result<State, Unsupported> {
         let layout = &self.layout;
         let n = layout.encoders();
-        let k = &layout.metres_per_count()[..n];
-        let counts_f64 = self.counts.map(|c| c as f64);
         Ok(match method {
             Method::Exact => {
                 let q = self.positions_q16(t_ns);
@@ -197,70 +179,15 @@ impl Odometry {
                     _ => ExactState::Body(ExactOdometry::new(exact, body, &q)),
                 })
             }
-            Method::Arc => {
-                let (solver, start) = self.float_start(body)?;
-                State::Arc(ArcOdometry::new(solver, k, start, &counts_f64[..n]))
+            #[cfg(any(test, feature = "float-methods"))]
+            Method::Arc | Method::Lut | Method::Timing => {
+                State::Float(FloatState::build(self, method, body, t_ns)?)
             }
-            Method::Lut => {
-                let (solver, start) = self.float_start(body)?;
-                let tables = match layout.differential_drive() {
-                    Some((step, track)) => LutTables::Differential(
-                        LutOdometry::with_origin_offset(step, track, start, self.lut_origin),
-                    ),
-                    None => self.lut_wheels(&solver, start)?,
-                };
-                State::Lut(Lut {
-                    tables,
-                    applied: self.counts,
-                })
-            }
-            Method::Timing => {
-                if self.sensors != SensorKind::Ticks {
-                    return Err(Unsupported::TimingNeedsTicks);
-                }
-                let (_, start) = self.float_start(body)?;
-                let mut t = TimingOdometry::from_wheels(&layout.wheels()[..n], k, start)
-                    .map_err(Unsupported::Geometry)?;
-                // Its integration starts here: every wheel taken to sit on an edge now.
-                t.update(t_ns);
-                State::Timing(t)
+            #[cfg(not(any(test, feature = "float-methods")))]
+            Method::Arc | Method::Lut | Method::Timing => {
+                return Err(Unsupported::FloatMethodsNotBuilt)
             }
         })
-    }
-
-    /// The float methods' solver and start pose: they integrate the carriage frame with a
-    /// carriage, the body otherwise.
-    fn float_start(
-        &self,
-        body: FixedPose,
-    ) -> Result<(crate::wheelset::WheelSolver, Pose2), Unsupported> {
-        let solver = self.layout.solver().map_err(Unsupported::Geometry)?;
-        let start = match self.layout.carriage_geometry() {
-            Some(g) => g.carriage_pose(body.to_pose2(), g.swivel_angle(self.abs)),
-            None => body.to_pose2(),
-        };
-        Ok((solver, start))
-    }
-
-    #[cfg(feature = "lut-n")]
-    fn lut_wheels(
-        &self,
-        solver: &crate::wheelset::WheelSolver,
-        start: Pose2,
-    ) -> Result<LutTables, Unsupported> {
-        let k = &self.layout.metres_per_count()[..self.layout.encoders()];
-        crate::lut::LutN::new(solver, k, start, self.lut_origin)
-            .map(LutTables::Wheels)
-            .map_err(Unsupported::LutLayout)
-    }
-
-    #[cfg(not(feature = "lut-n"))]
-    fn lut_wheels(
-        &self,
-        _solver: &crate::wheelset::WheelSolver,
-        _start: Pose2,
-    ) -> Result<LutTables, Unsupported> {
-        Err(Unsupported::LutTablesNotBuilt)
     }
 
     /// What `exact` sees of each wheel, Q16 counts: interpolated between ticks at `t_ns` with
@@ -331,19 +258,13 @@ impl Odometry {
     /// saves no registers for it.
     #[inline(never)]
     fn tick_now(&mut self, t_ns: u64, encoder: usize, step: i8) {
-        if !self.record_tick(t_ns, encoder, step) {
-            return;
+        let recorded = self.record_tick(t_ns, encoder, step);
+        #[cfg(any(test, feature = "float-methods"))]
+        if let (true, State::Float(f)) = (recorded, &mut self.state) {
+            f.tick(t_ns, encoder, step);
         }
-        match &mut self.state {
-            State::Lut(l) => {
-                l.tables.tick(encoder, step);
-                if let Some(a) = l.applied.get_mut(encoder) {
-                    *a += step as i64;
-                }
-            }
-            State::Timing(t) => t.tick(t_ns, encoder, step),
-            State::Exact(_) | State::Arc(_) => {}
-        }
+        // Without the float methods the tick is the tracker's and the count's only.
+        let _ = recorded;
     }
 
     /// The tick into its wheel's tracker and count; false if it is to be ignored.
@@ -403,7 +324,8 @@ impl Odometry {
     pub fn update(&mut self, t_ns: u64) -> FixedPose {
         match self.state {
             State::Exact(_) => self.update_exact(t_ns),
-            _ => self.update_float(t_ns),
+            #[cfg(any(test, feature = "float-methods"))]
+            State::Float(_) => self.update_float(t_ns),
         }
     }
 
@@ -412,7 +334,7 @@ impl Odometry {
     fn update_exact(&mut self, t_ns: u64) -> FixedPose {
         self.refresh_positions(t_ns);
         let q = &self.positions;
-        if let State::Exact(e) = &mut self.state {
+        if let Some(e) = self.state.exact_mut() {
             self.pose = match e {
                 ExactState::Body(o) => o.update_q16(q),
                 ExactState::Carriage(c) => c.update_q16(q, self.abs),
@@ -421,34 +343,10 @@ impl Odometry {
         self.pose
     }
 
-    fn update_float(&mut self, t_ns: u64) -> FixedPose {
-        let n = self.layout.encoders();
-        let counts = self.counts;
-        let frame = match &mut self.state {
-            State::Exact(_) => return self.pose,
-            // Whole counts, in either sensor mode (seed 004 samples counters).
-            State::Arc(a) => a.update(&counts.map(|c| c as f64)[..n]),
-            // With counts: each sample's changes as ticks, the wheels interleaved. With ticks
-            // every tick is in already and this does nothing.
-            State::Lut(l) => {
-                let tables = &mut l.tables;
-                counts_as_ticks(&mut l.applied[..n], &counts[..n], |j, s| tables.tick(j, s));
-                tables.pose()
-            }
-            State::Timing(t) => t.update(t_ns),
-        };
-        let body = match self.layout.carriage_geometry() {
-            Some(g) => g.body_pose(frame, g.swivel_angle(self.abs)),
-            None => frame,
-        };
-        self.pose = FixedPose::from_pose2(body);
-        self.pose
-    }
-
     /// Restart from `pose` at the current readings at `t_ns` (a set-pose command): what
     /// moved before is taken in first, then the pose is replaced.
     pub fn set_pose(&mut self, pose: FixedPose, t_ns: u64) {
-        if let State::Exact(_) = self.state {
+        if self.state.is_exact() {
             self.set_pose_exact(pose, t_ns);
             return;
         }
@@ -464,7 +362,7 @@ impl Odometry {
     fn set_pose_exact(&mut self, pose: FixedPose, t_ns: u64) {
         self.refresh_positions(t_ns);
         let q = &self.positions;
-        if let State::Exact(e) = &mut self.state {
+        if let Some(e) = self.state.exact_mut() {
             match e {
                 ExactState::Body(o) => {
                     o.update_q16(q);

@@ -359,6 +359,7 @@ impl Layout {
     }
 
     /// The wheel solver of the float methods (floats: at start or switch only).
+    #[cfg(any(test, feature = "float-methods"))]
     pub(crate) fn solver(&self) -> Result<WheelSolver, GeometryError> {
         WheelSolver::new(&self.wheels[..self.encoders()])
     }

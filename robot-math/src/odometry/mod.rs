@@ -107,6 +107,9 @@ pub enum Unsupported {
     LutTablesNotBuilt,
     /// The wheels cannot determine the motion (a layout rebuilt from inconsistent parts).
     Geometry(crate::wheelset::GeometryError),
+    /// `arc`, `lut` and `timing` are left out of this build (robot-math feature
+    /// `float-methods`; on the slave, its `baselines` feature).
+    FloatMethodsNotBuilt,
 }
 
 impl fmt::Display for Unsupported {
@@ -127,6 +130,10 @@ impl fmt::Display for Unsupported {
             Unsupported::Geometry(e) => {
                 write!(f, "the encoders cannot determine the body's motion: {e:?}")
             }
+            Unsupported::FloatMethodsNotBuilt => f.write_str(
+                "the float baselines (`arc`, `lut`, `timing`) are left out of this build (a slave \
+                 image without its `baselines` feature)",
+            ),
         }
     }
 }
