@@ -314,19 +314,32 @@ impl ExactOdometry {
         if chunks == 1 {
             Self::step(&self.p, &mut self.pose, dq);
         } else {
-            // Equal parts that add up to dq exactly.
-            let mut done = [0i64; MAX_ENCODERS];
-            for k in 1..=chunks {
-                let mut part = [0i64; MAX_ENCODERS];
-                for j in 0..MAX_ENCODERS {
-                    let upto = ((dq[j] as i128 * k as i128) / chunks as i128) as i64;
-                    part[j] = upto - done[j];
-                    done[j] = upto;
-                }
-                Self::step(&self.p, &mut self.pose, &part);
-            }
+            Self::steps_in_chunks(&self.p, &mut self.pose, dq, chunks);
         }
         self.pose
+    }
+
+    /// A move too big for one step, in `chunks` equal parts that add up to `dq` exactly
+    /// ([`chunk_end`]: in 64 bits; the 128-bit division it replaces was 0.5 KB of the slave's
+    /// flash). Cold: only a jump of hundreds of counts in one update comes here.
+    #[cold]
+    #[inline(never)]
+    fn steps_in_chunks(
+        p: &ExactParams,
+        pose: &mut FixedPose,
+        dq: &[i64; MAX_ENCODERS],
+        chunks: i64,
+    ) {
+        let mut done = [0i64; MAX_ENCODERS];
+        for k in 1..=chunks {
+            let mut part = [0i64; MAX_ENCODERS];
+            for j in 0..MAX_ENCODERS {
+                let upto = chunk_end(dq[j], k, chunks);
+                part[j] = upto - done[j];
+                done[j] = upto;
+            }
+            Self::step(p, pose, &part);
+        }
     }
 
     /// One chunk's step (the parts of `self` it needs, apart: `dq` may be `self.dq`).
@@ -371,6 +384,16 @@ impl ExactOdometry {
         pose.y += wy - mul_q30_wide(wy, eps_q30);
         pose.theta = pose.theta.wrapping_add(dth);
     }
+}
+
+/// Where the `k`-th of `chunks` equal parts of `dq` ends: trunc(dq·k / chunks), for
+/// 0 < k ≤ chunks ≤ 2^20 + 1 (what `update_q16`'s chunking can ask: a saturated 2^63 over
+/// the 2^43 chunk). As q·k + trunc(r·k / chunks) with dq = q·chunks + r, both truncations
+/// toward zero with q and r of dq's sign; |q·k| ≤ |dq| and |r·k| < chunks² ≤ 2^42: no
+/// overflow, no 128-bit division.
+fn chunk_end(dq: i64, k: i64, chunks: i64) -> i64 {
+    let (q, r) = (dq / chunks, dq % chunks);
+    q * k + r * k / chunks
 }
 
 /// `x / 2` (rounding toward zero) by shifts: at opt-level "z" a 64-bit division, even by
@@ -438,6 +461,30 @@ impl ExactOracle {
 mod tests {
     use super::*;
     use crate::se2::{wrap_angle, Twist};
+
+    #[test]
+    fn chunk_ends_are_the_exact_truncated_fractions() {
+        let dqs = [
+            0i64,
+            1,
+            -1,
+            7,
+            -7,
+            65_535,
+            -65_537,
+            1 << 40,
+            -(1 << 47) - 3,
+            i64::MAX / 3,
+        ];
+        for dq in dqs {
+            for chunks in [2i64, 3, 7, 1_000, (1 << 20) + 1] {
+                for k in [1, 2, chunks / 2, chunks - 1, chunks] {
+                    let exact = (dq as i128 * k as i128 / chunks as i128) as i64;
+                    assert_eq!(chunk_end(dq, k, chunks), exact, "{dq} {k} {chunks}");
+                }
+            }
+        }
+    }
     use crate::wheel::Wheel;
     use core::f64::consts::PI;
     use proptest::prelude::*;

@@ -122,19 +122,44 @@ fn mul_q30_split(a: i64, f: i32) -> i64 {
     shr_round(hi_f, 14) + shr_round(lo as i64 * f as i64, 30)
 }
 
-/// Shift right by `n` with rounding to nearest, symmetric about zero (no drift towards −∞).
+/// Shift right by `n` with rounding to nearest, symmetric about zero (no drift towards −∞):
+/// `(a + h) >> n` for `a >= 0` and `−((−a + h) >> n)` below, h = 2^(n−1).
+///
+/// Without a branch: for a = −b < 0, ⌊(h − 1 − b) / 2^n⌋ = −⌈(b − h + 1) / 2^n⌉
+/// = −⌊(b + h) / 2^n⌋ (as 2^n − h = h), so adding the sign (−1) before the shift is the same.
+/// Inlined in a dozen places, the branching form was 0.6 KB of the slave's flash.
 #[inline(always)]
 pub fn shr_round(a: i64, n: u32) -> i64 {
-    if a >= 0 {
-        (a + (1 << (n - 1))) >> n
-    } else {
-        -((-a + (1 << (n - 1))) >> n)
-    }
+    (a + (1 << (n - 1)) + (a >> 63)) >> n
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn shr_round_is_the_symmetric_rounding_at_every_tie() {
+        let branching = |a: i64, n: u32| {
+            let h = 1i64 << (n - 1);
+            if a >= 0 {
+                (a + h) >> n
+            } else {
+                -((-a + h) >> n)
+            }
+        };
+        for n in 1..40u32 {
+            for k in -4i64..4 {
+                let h = 1i64 << (n - 1);
+                for d in [-h - 1, -h, -h + 1, -1, 0, 1, h - 1, h, h + 1] {
+                    let a = (k << n) + d;
+                    assert_eq!(shr_round(a, n), branching(a, n), "{a} >> {n}");
+                }
+            }
+        }
+        for a in (-100_000i64..100_000).map(|a| a * 7_919) {
+            assert_eq!(shr_round(a, 4), branching(a, 4), "{a}");
+        }
+    }
 
     #[test]
     fn matches_libm_everywhere() {
