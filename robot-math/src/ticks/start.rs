@@ -41,12 +41,16 @@ const MIN_GAP: i64 = ONE / 256;
 /// 1/8 count.
 const MARGIN: i64 = ONE / 8;
 
-/// `a·b` in Q24, or `None` past 64 bits.
+/// `a·b` in Q24, or `None` past 64 bits. Out of line (as [`div`]): a checked 64-bit multiply
+/// is dozens of instructions on the M3, and each inlined copy cost flash in a fit that runs
+/// for a wheel's first ticks only.
+#[inline(never)]
 fn mul(a: i64, b: i64) -> Option<i64> {
     a.checked_mul(b).map(|p| p >> Q)
 }
 
 /// `a / b` in Q24, or `None` past 64 bits or for `b` = 0.
+#[inline(never)]
 fn div(a: i64, b: i64) -> Option<i64> {
     a.checked_mul(ONE)?.checked_div(b)
 }
