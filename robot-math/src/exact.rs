@@ -392,8 +392,12 @@ impl ExactOdometry {
 /// toward zero with q and r of dq's sign; |q·k| ≤ |dq| and |r·k| < chunks² ≤ 2^42: no
 /// overflow, no 128-bit division.
 fn chunk_end(dq: i64, k: i64, chunks: i64) -> i64 {
-    let (q, r) = (dq / chunks, dq % chunks);
-    q * k + r * k / chunks
+    // `checked_*`: `chunks` is at least 2 here, but out of line the compiler cannot see that,
+    // and a division's panic path must not reach the board (`scripts/check-no-float.py`).
+    let (Some(q), Some(r)) = (dq.checked_div(chunks), dq.checked_rem(chunks)) else {
+        return 0;
+    };
+    q * k + (r * k).checked_div(chunks).unwrap_or(0)
 }
 
 /// `x / 2` (rounding toward zero) by shifts: at opt-level "z" a 64-bit division, even by
