@@ -21,9 +21,16 @@ use embassy_time::{Duration, Instant};
 
 struct Clock {
     now: u64,
-    /// Pending wake-ups. Small (one entry per sleeping task), so a Vec beats a heap here.
+    /// Wake-ups: one entry per waker that ever slept on a timer (one per task), at its
+    /// earliest deadline, or [`IDLE`] once woken. An entry stays after it fires, so a task's
+    /// next timer (every millisecond or so in an emulation) finds its waker there instead of
+    /// cloning it in and dropping it again, each an atomic update. Small, so a Vec beats a
+    /// heap here.
     queue: Vec<(u64, Waker)>,
 }
+
+/// A queue entry with no pending wake-up (as if removed: it never comes due).
+const IDLE: u64 = u64::MAX;
 
 thread_local! {
     static CLOCK: RefCell<Clock> = const { RefCell::new(Clock { now: 0, queue: Vec::new() }) };
@@ -42,6 +49,8 @@ impl embassy_time_driver::Driver for VirtualDriver {
             let mut c = c.borrow_mut();
             // A timer re-registers on every poll; keep one entry per waker, the earliest.
             if let Some(e) = c.queue.iter_mut().find(|(_, w)| w.will_wake(waker)) {
+                // `at` is never IDLE here in practice (u64::MAX ticks is 584 000 years); if
+                // it were, the entry would just never come due, as it would not have.
                 e.0 = e.0.min(at);
             } else {
                 c.queue.push((at, waker.clone()));
@@ -132,7 +141,9 @@ impl<'a> Simulation<'a> {
         loop {
             let mut progressed = false;
             for t in self.tasks.iter_mut().filter(|t| !t.done) {
-                if t.woken.0.swap(false, Ordering::Acquire) {
+                // Most tasks are not woken on a pass: a plain load first spares them the
+                // locked swap.
+                if t.woken.0.load(Ordering::Relaxed) && t.woken.0.swap(false, Ordering::Acquire) {
                     progressed = true;
                     polls += 1;
                     let mut cx = Context::from_waker(&t.waker);
@@ -153,6 +164,7 @@ impl<'a> Simulation<'a> {
     pub fn next_deadline(&self) -> Option<Instant> {
         CLOCK
             .with(|c| c.borrow().queue.iter().map(|(at, _)| *at).min())
+            .filter(|at| *at != IDLE)
             .map(Instant::from_ticks)
     }
 
@@ -189,22 +201,31 @@ impl<'a> Simulation<'a> {
     }
 
     fn set_clock(&mut self, ticks: u64) {
-        let due: Vec<Waker> = CLOCK.with(|c| {
+        // The clock moves at every physics step of an emulation: this once allocated a list
+        // of the due wakers, cloned each into it and dropped its queue entry, a twentieth of
+        // the run. Now the due entries are woken by reference and stay in the queue, idle.
+        let mut queue = CLOCK.with(|c| {
             let mut c = c.borrow_mut();
             c.now = ticks;
-            let mut due = Vec::new();
-            c.queue.retain(|(at, w)| {
-                if *at <= ticks {
-                    due.push(w.clone());
-                    false
-                } else {
-                    true
-                }
-            });
-            due
+            std::mem::take(&mut c.queue)
         });
         // Wake outside the borrow: a waker may re-enter the driver.
-        due.into_iter().for_each(Waker::wake);
+        for (at, w) in queue.iter_mut().filter(|(at, _)| *at <= ticks) {
+            *at = IDLE;
+            w.wake_by_ref();
+        }
+        CLOCK.with(|c| {
+            let mut c = c.borrow_mut();
+            // Wake-ups registered while the wakers ran (this executor's wakers register none)
+            // join the queue as `schedule_wake` would have added them.
+            for (at, waker) in c.queue.drain(..) {
+                match queue.iter_mut().find(|(_, w)| w.will_wake(&waker)) {
+                    Some(e) => e.0 = e.0.min(at),
+                    None => queue.push((at, waker)),
+                }
+            }
+            c.queue = queue;
+        });
     }
 }
 
