@@ -80,7 +80,8 @@ pub enum LayoutError {
     CarriageEncoders(usize),
     /// A carriage needs an absolute encoder for its swivel angle.
     CarriageNeedsAbsoluteEncoder,
-    /// The carriage's trail is not finite or out of the fixed-point range.
+    /// The carriage's trail is not finite or out of the fixed-point range (itself, or the
+    /// pivot's sideways travel per count it gives the fixed-point carriage).
     CarriageTrail,
     /// Absolute encoder resolution not in 1..=16 bits.
     AbsBits(u8),
@@ -125,7 +126,11 @@ impl fmt::Display for LayoutError {
                 )
             }
             LayoutError::CarriageTrail => {
-                write!(f, "the carriage trail is not finite or not under 128 m")
+                write!(
+                    f,
+                    "the carriage trail is not finite, not under 128 m, or so long that the \
+                     pivot moves 1/16 m or more sideways per count of the measuring wheels"
+                )
             }
             LayoutError::AbsBits(b) => {
                 write!(f, "absolute encoder: {b} bits, expected 1 to 16")

@@ -102,6 +102,17 @@ fn layout_errors_name_the_problem() {
         Layout::from_geometry(&axle(K), Some(f64::NAN), abs).unwrap_err(),
         LayoutError::CarriageTrail
     );
+    // Past 128 m; and under it, but moving the pivot 0.5 m sideways per count (1 mm counts
+    // on a 0.2 m axle, 100 m behind): the fixed-point carriage's constants would not fit.
+    assert_eq!(
+        Layout::from_geometry(&axle(K), Some(200.0), abs).unwrap_err(),
+        LayoutError::CarriageTrail
+    );
+    assert_eq!(
+        Layout::from_geometry(&axle(1e-3), Some(100.0), abs).unwrap_err(),
+        LayoutError::CarriageTrail
+    );
+    assert!(Layout::from_geometry(&axle(K), Some(10.0), abs).is_ok());
     let bad_bits = Some(AbsLayout {
         bits: 17,
         ..AbsLayout::E6CP_AG5C
