@@ -196,6 +196,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "baselines")]
     fn timing_on_counts_is_flagged_until_a_supported_switch() {
         let layout = Layout::SEED_004;
         let mut est = SlaveEstimator::new(
@@ -221,6 +222,51 @@ mod tests {
         let x = u.pose.to_pose2().x;
         let k = layout.metres_per_count()[0];
         assert!((x - 7.0 * k).abs() < 1e-9, "{x}");
+    }
+
+    /// The default image (no `baselines`): every float method is refused, `exact` keeps
+    /// running and integrating, and the refusal is flagged until a switch that works.
+    /// `cargo test -p firmware-slave` runs it (`.ci/run` does); the workspace's `cargo test`
+    /// builds the slave with host-bench's `baselines`.
+    #[test]
+    #[cfg(not(feature = "baselines"))]
+    fn an_image_without_the_baselines_refuses_them_and_keeps_exact() {
+        let layout = Layout::SEED_004;
+        let mut est = SlaveEstimator::new(
+            &layout,
+            SensorMode::Counts,
+            0,
+            &[0, 0],
+            &[0, 0],
+            abs_levels(0),
+        )
+        .unwrap();
+        for (k, alg) in [
+            OdometryAlgorithm::Arc,
+            OdometryAlgorithm::Lut,
+            OdometryAlgorithm::Timing,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let t = (k as u64 + 1) * 1_000_000;
+            let c = 5 * (k as i64 + 1);
+            let u = est.sample(
+                t,
+                &[c, c],
+                false,
+                abs_levels(0),
+                Some(SlaveCommand::SetAlgorithm(alg)),
+            );
+            assert_eq!(u.algorithm, OdometryAlgorithm::Exact, "{alg:?}");
+            assert_ne!(u.status & slave_status::ALGORITHM_UNSUPPORTED, 0, "{alg:?}");
+            let x = u.pose.to_pose2().x;
+            let travel = c as f64 * layout.metres_per_count()[0];
+            assert!((x - travel).abs() < 1e-9, "{alg:?}: {x} vs {travel}");
+        }
+        let exact = Some(SlaveCommand::SetAlgorithm(OdometryAlgorithm::Exact));
+        let u = est.sample(9_000_000, &[20, 20], false, abs_levels(0), exact);
+        assert_eq!(u.status & slave_status::ALGORITHM_UNSUPPORTED, 0);
     }
 
     #[test]

@@ -340,9 +340,14 @@ pub(crate) fn pivot_params(
     use crate::exact::{ExactParams, MAX_ENCODERS};
     /// round(π · 2^29) = round(2π · 2^28).
     const TWO_PI_Q28: i128 = 1_686_629_713;
+    // `CarriageExact::new` and `from_params` are public: the bound `Layout` checks is checked
+    // here too, so the products below cannot overflow whoever calls.
+    if trail_q40.unsigned_abs() >= crate::odometry::MAX_TRAIL_Q40 as u64 {
+        return None;
+    }
     let (kx, mut ky, kth) = (axle.kx(), axle.ky(), axle.kth());
     for j in 0..MAX_ENCODERS {
-        // |trail| < 2^47 (`Layout`), |kth| < 2^46 (`ExactParams`): below 2^124, no overflow.
+        // |trail| < 2^47 (above), |kth| < 2^46 (`ExactParams`): below 2^124, no overflow.
         let side = (trail_q40 as i128 * kth[j] as i128 * TWO_PI_Q28 + (1 << 71)) >> 72;
         ky[j] = ky[j].checked_add(i64::try_from(side).ok()?)?;
     }

@@ -206,9 +206,10 @@ pub fn set_method_and_source(
             if method == Method::Exact {
                 ""
             } else {
-                "; the float baselines are only in a slave image built with them: `cargo build \
-                 --release --target thumbv7m-none-eabi -p firmware-slave --features baselines`, \
-                 then `host-bench flash`"
+                "; and a slave image built without the float baselines refuses `arc`, `lut` and \
+                 `timing` on any robot: build it with them, `cargo build --release --target \
+                 thumbv7m-none-eabi -p firmware-slave --features baselines`, then `host-bench \
+                 flash`"
             }
         ),
         |i| i.source == source && i.algorithm == alg,

@@ -114,7 +114,10 @@ impl Odometry {
             recent: [RecentTicks::default(); MAX_ENCODERS],
             keep_edges: false,
             counts,
-            positions: [0; MAX_ENCODERS],
+            // Counts mode keeps them with the counts (`set_counts`) and reads them as they are:
+            // they start at the counts `exact` starts from, or an update before the first
+            // `set_counts` would integrate a move from there back to zero.
+            positions: counts.map(|c| c.wrapping_shl(16)),
             abs,
             pose: start,
             lut_origin: (

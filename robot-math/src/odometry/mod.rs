@@ -20,7 +20,7 @@ mod layout;
 mod tests;
 
 pub use estimator::Odometry;
-pub use layout::{AbsLayout, CarriageLayout, Layout, LayoutError};
+pub use layout::{AbsLayout, CarriageLayout, Layout, LayoutError, MAX_TRAIL_Q40};
 
 use core::fmt;
 

@@ -495,3 +495,40 @@ fn seed_004_constants_are_what_the_geometry_gives() {
         Some(0.2)
     );
 }
+
+/// Counts mode started away from zero: an update (or set-pose) before the first counts are
+/// sampled must not integrate a move back to zero (found in review: the positions `exact`
+/// reads once started at zero while the integrator started at the counts).
+#[test]
+fn counts_mode_started_at_nonzero_counts_stands_still_until_they_move() {
+    let start = [1000, -1000, 0, 0];
+    let mut o = Odometry::new(
+        &diff_axle(),
+        Method::Exact,
+        SensorKind::Counts,
+        FixedPose::default(),
+        0,
+        start,
+        None,
+    )
+    .unwrap();
+    assert_eq!(o.update(1_000_000), FixedPose::default());
+    let here = FixedPose::from_micrometres(5, 7, 0);
+    o.set_pose(here, 2_000_000);
+    o.set_counts(&start);
+    assert_eq!(o.update(3_000_000), here);
+}
+
+/// `CarriageExact` is public: an absurd trail handed to it directly is refused, not
+/// overflowed (the bound `Layout` checks is checked there too).
+#[test]
+fn a_carriage_trail_past_the_bound_is_refused_by_the_integrator_itself() {
+    use crate::carriage::CarriageGeometry;
+    let g = CarriageGeometry {
+        trail: 1e7,
+        wheel_base: 0.02,
+        metres_per_count: [0.01; 2],
+        ..CarriageGeometry::SEED_004
+    };
+    assert!(CarriageExact::new(&g, crate::Pose2::default(), [0, 0], 0).is_none());
+}
