@@ -188,6 +188,19 @@ mod tests {
         !binary_to_gray(position) & 0xFF
     }
 
+    /// Seed 004's sensors read as counters, at rest at the origin with the swivel at 0.
+    fn seed_004_reading_counters() -> SlaveEstimator {
+        SlaveEstimator::new(
+            &Layout::SEED_004,
+            SensorMode::Counts,
+            0,
+            &[0, 0],
+            &[0, 0],
+            abs_levels(0),
+        )
+        .unwrap()
+    }
+
     #[test]
     fn algorithm_codes_map_one_to_one() {
         for m in Method::ALL {
@@ -199,15 +212,7 @@ mod tests {
     #[cfg(feature = "baselines")]
     fn timing_on_counts_is_flagged_until_a_supported_switch() {
         let layout = Layout::SEED_004;
-        let mut est = SlaveEstimator::new(
-            &layout,
-            SensorMode::Counts,
-            0,
-            &[0, 0],
-            &[0, 0],
-            abs_levels(0),
-        )
-        .unwrap();
+        let mut est = seed_004_reading_counters();
         let timing = Some(SlaveCommand::SetAlgorithm(OdometryAlgorithm::Timing));
         let u = est.sample(1_000_000, &[5, 5], false, abs_levels(0), timing);
         assert_eq!(u.algorithm, OdometryAlgorithm::Exact);
@@ -232,15 +237,7 @@ mod tests {
     #[cfg(not(feature = "baselines"))]
     fn an_image_without_the_baselines_refuses_them_and_keeps_exact() {
         let layout = Layout::SEED_004;
-        let mut est = SlaveEstimator::new(
-            &layout,
-            SensorMode::Counts,
-            0,
-            &[0, 0],
-            &[0, 0],
-            abs_levels(0),
-        )
-        .unwrap();
+        let mut est = seed_004_reading_counters();
         for (k, alg) in [
             OdometryAlgorithm::Arc,
             OdometryAlgorithm::Lut,
