@@ -388,17 +388,7 @@ fn a_recording_replays_against_its_truth() {
     let board = Board::start(virtual_board::Options::default());
     let out = dir.path().join("rec.csv");
     let mut link = board.link();
-    let o = record::record(
-        &mut link,
-        &record::RecordRequest {
-            out: &out,
-            duration_s: Some(2.0),
-            counts: false,
-            robot: None,
-            progress: None,
-        },
-    )
-    .unwrap();
+    let o = record::record(&mut link, &board::recording(&out, None, false)).unwrap();
     assert_eq!((o.lost_events, o.lost_updates), (0, 0), "{o:?}");
     assert!(o.ticks > 1000 && o.truth_rows > 100, "{o:?}");
     let (stream, score) = replay_exact(&out);
@@ -459,7 +449,7 @@ fn a_virtual_board_of_our_own_robot_records_what_replay_and_the_board_agree_on()
     let mut link = board.link();
     // The slave holds another robot than its power-on one: a recording must name it.
     let out = dir.path().join("unnamed.csv");
-    let e = record::record(&mut link, &request(&out, None, false)).unwrap_err();
+    let e = record::record(&mut link, &board::recording(&out, None, false)).unwrap_err();
     assert!(format!("{e:#}").contains("--robot"), "{e:#}");
     assert!(!out.exists());
 
@@ -467,7 +457,7 @@ fn a_virtual_board_of_our_own_robot_records_what_replay_and_the_board_agree_on()
         let out = dir.path().join(format!("rec-{counts}.csv"));
         let o = record::record(
             &mut link,
-            &request(&out, Some(robot_path.as_path()), counts),
+            &board::recording(&out, Some(robot_path.as_path()), counts),
         )
         .unwrap();
         assert_eq!((o.lost_events, o.lost_updates), (0, 0), "{o:?}");
@@ -494,16 +484,6 @@ fn a_virtual_board_of_our_own_robot_records_what_replay_and_the_board_agree_on()
             b.rows >= 30 && b.final_error_m < bound,
             "counts {counts}: {b:?}"
         );
-    }
-}
-
-fn request<'a>(out: &'a Path, robot: Option<&'a Path>, counts: bool) -> record::RecordRequest<'a> {
-    record::RecordRequest {
-        out,
-        duration_s: Some(2.0),
-        counts,
-        robot,
-        progress: None,
     }
 }
 

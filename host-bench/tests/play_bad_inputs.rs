@@ -275,17 +275,7 @@ fn a_carriage_recording_plays_as_close_to_its_truth_as_it_replays() {
     let dir = tempfile::tempdir().unwrap();
     let board = Board::start(virtual_board::Options::default());
     let out = dir.path().join("rec.csv");
-    record::record(
-        &mut board.link(),
-        &record::RecordRequest {
-            out: &out,
-            duration_s: Some(2.0),
-            counts: false,
-            robot: None,
-            progress: None,
-        },
-    )
-    .unwrap();
+    record::record(&mut board.link(), &board::recording(&out, None, false)).unwrap();
     let stream = tickstream::read(&out).unwrap();
     let robot = Robot::load(&stream.robot_path(&out).unwrap()).unwrap();
     let replay = |s: &TickStream, rate: Option<f64>| {

@@ -5,7 +5,10 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use std::path::Path;
+
 use host_bench::serial::link::Link;
+use host_bench::serial::record::RecordRequest;
 use host_bench::sim::virtual_board;
 
 /// Stopped when dropped.
@@ -42,5 +45,17 @@ impl Drop for Board {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
+    }
+}
+
+/// Two seconds recorded into `out`, with the board's own robot or `robot`, time stamps or
+/// `counts`, no progress bar.
+pub fn recording<'a>(out: &'a Path, robot: Option<&'a Path>, counts: bool) -> RecordRequest<'a> {
+    RecordRequest {
+        out,
+        duration_s: Some(2.0),
+        counts,
+        robot,
+        progress: None,
     }
 }
