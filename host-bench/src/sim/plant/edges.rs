@@ -16,58 +16,29 @@ pub(super) fn push_crossings(
     (a, b): (f64, f64),
     (v0, v1): (f64, f64),
 ) {
-    let position = |u: f64| {
-        let (u2, u3) = (u * u, u * u * u);
-        (2.0 * u3 - 3.0 * u2 + 1.0) * a
-            + (u3 - 2.0 * u2 + u) * v0
-            + (3.0 * u2 - 2.0 * u3) * b
-            + (u3 - u2) * v1
-    };
-    let slope = |u: f64| {
-        let u2 = u * u;
-        (6.0 * u2 - 6.0 * u) * (a - b) + (3.0 * u2 - 4.0 * u + 1.0) * v0 + (3.0 * u2 - 2.0 * u) * v1
-    };
-    // Where the cubic reaches each edge (it is on opposite sides at the ends): Newton
-    // from the straight line's guess, kept inside the bracket by bisection
-    // ([`Crossing`]). The edges are solved `CROSSING_LANES` at a time, side by side:
-    // each runs exactly the one-edge iteration, so each result is the same to the bit,
-    // but their chains of dependent multiplications and divisions overlap in the CPU
-    // instead of each waiting for the one before (the loop was most of the plant's
-    // time).
+    let cubic = Cubic::hermite((a, b), (v0, v1));
+    // Where the cubic reaches each edge (it is on opposite sides at the ends): Newton from
+    // the inverse cubic's guess, kept inside the bracket by bisection ([`Crossing`]). The
+    // guess is most often within 10^-9 counts already (Newton is then only checked), so the
+    // edges are solved one after the other: solving four side by side, which paid while
+    // Newton started on the straight line, now costs more than it overlaps.
+    let guess = InverseGuess::new((a, b), (v0, v1));
     let rising = b > a;
     let (lo, hi) = (
         a.floor().min(b.floor()) as i64,
         a.floor().max(b.floor()) as i64,
     );
-    let mut first = lo + 1;
-    while first <= hi {
-        let mut lanes = [Crossing::DONE; CROSSING_LANES];
-        for (k, lane) in lanes.iter_mut().enumerate() {
-            let edge = first + k as i64;
-            if edge <= hi {
-                *lane = Crossing::start(edge as f64, a, b);
-            }
-        }
+    edges.reserve((hi - lo) as usize);
+    for edge in lo + 1..=hi {
+        let e = edge as f64;
+        let mut crossing = Crossing::start(e, guess.at(e));
         for _ in 0..60 {
-            let mut active = false;
-            for lane in lanes.iter_mut().filter(|l| !l.done) {
-                lane.iterate(&position, &slope, rising);
-                active |= !lane.done;
-            }
-            if !active {
+            if crossing.iterate(&cubic, rising) {
                 break;
             }
         }
-        for (k, lane) in lanes.iter().enumerate() {
-            let edge = first + k as i64;
-            if edge > hi {
-                break;
-            }
-            let t = t0 + h * lane.u;
-            let count_after = if rising { edge } else { edge - 1 };
-            edges.push((t, j, count_after));
-        }
-        first += CROSSING_LANES as i64;
+        let count_after = if rising { edge } else { edge - 1 };
+        edges.push((t0 + h * crossing.u, j, count_after));
     }
     if b < a {
         // Downward, the higher edges are crossed first.
@@ -77,69 +48,118 @@ pub(super) fn push_crossings(
     }
 }
 
-const CROSSING_LANES: usize = 4;
+/// A step's position in counts as a cubic in the step's fraction `u`, in monomial form: the
+/// Hermite cubic through the ends' positions and speeds, so that each Newton step costs three
+/// multiply-adds for the position and two for the slope (the Hermite basis cost fifteen).
+#[derive(Clone, Copy, Debug)]
+struct Cubic([f64; 4]);
 
-/// One edge's crossing of a step's cubic, found by Newton's method from the straight line's
-/// guess, kept inside the bracket `[lo, hi]` by bisection: `u` is the fraction of the step.
+impl Cubic {
+    /// Position `a` at u = 0 and `b` at u = 1, speeds `v0` and `v1` (counts per step).
+    fn hermite((a, b): (f64, f64), (v0, v1): (f64, f64)) -> Cubic {
+        let d = b - a;
+        Cubic([a, v0, 3.0 * d - 2.0 * v0 - v1, v0 + v1 - 2.0 * d])
+    }
+
+    #[inline(always)]
+    fn position(&self, u: f64) -> f64 {
+        let [c0, c1, c2, c3] = self.0;
+        ((c3 * u + c2) * u + c1) * u + c0
+    }
+
+    #[inline(always)]
+    fn slope(&self, u: f64) -> f64 {
+        let [_, c1, c2, c3] = self.0;
+        (3.0 * c3 * u + 2.0 * c2) * u + c1
+    }
+}
+
+/// Where Newton starts for an edge: on the inverse cubic (the step's fraction as a cubic in
+/// the position, through the ends with slopes 1/v0 and 1/v1) when both ends move the way the
+/// step goes, which lands within a hair of the crossing and leaves Newton one step; else on
+/// the straight line (a wheel starting from rest or turning back inside the step).
+#[derive(Clone, Copy, Debug)]
+struct InverseGuess {
+    a: f64,
+    /// 1 / (b - a): the edge's fraction of the way from `a` to `b`.
+    per_count: f64,
+    /// The inverse cubic's monomial coefficients of s, s² and s³ (s the fraction of the
+    /// way), or the straight line's.
+    c: [f64; 3],
+}
+
+impl InverseGuess {
+    fn new((a, b): (f64, f64), (v0, v1): (f64, f64)) -> InverseGuess {
+        let d = b - a;
+        // The inverse's end slopes: fractions of the step per fraction of the way.
+        let (m0, m1) = (d / v0, d / v1);
+        // Beyond these the cubic is far from monotone in u, its inverse no help.
+        let fits = |m: f64| m > 0.25 && m < 4.0;
+        let c = if fits(m0) && fits(m1) {
+            // Hermite: u(0) = 0, u(1) = 1, u'(0) = m0, u'(1) = m1.
+            [m0, 3.0 - 2.0 * m0 - m1, m0 + m1 - 2.0]
+        } else {
+            [1.0, 0.0, 0.0]
+        };
+        InverseGuess {
+            a,
+            per_count: 1.0 / d,
+            c,
+        }
+    }
+
+    #[inline(always)]
+    fn at(&self, edge: f64) -> f64 {
+        let s = (edge - self.a) * self.per_count;
+        let [c1, c2, c3] = self.c;
+        (((c3 * s + c2) * s + c1) * s).clamp(0.0, 1.0)
+    }
+}
+
+/// One edge's crossing of a step's cubic, found by Newton's method, kept inside the bracket
+/// `[lo, hi]` by bisection: `u` is the fraction of the step.
 #[derive(Clone, Copy, Debug)]
 struct Crossing {
     edge: f64,
     u: f64,
     lo: f64,
     hi: f64,
-    done: bool,
 }
 
 impl Crossing {
-    /// A lane with nothing to solve.
-    const DONE: Crossing = Crossing {
-        edge: 0.0,
-        u: 0.0,
-        lo: 0.0,
-        hi: 1.0,
-        done: true,
-    };
-
-    fn start(edge: f64, a: f64, b: f64) -> Crossing {
+    fn start(edge: f64, u: f64) -> Crossing {
         Crossing {
             edge,
-            u: ((edge - a) / (b - a)).clamp(0.0, 1.0),
+            u,
             lo: 0.0,
             hi: 1.0,
-            done: false,
         }
     }
 
-    /// One Newton step; `done` once `u` is the crossing. At most 60 are taken (`u` is then
-    /// the last step's).
+    /// One Newton step; true once `u` is the crossing. The caller stops after 60 (`u` is
+    /// then the last step's).
     #[inline(always)]
-    fn iterate(
-        &mut self,
-        position: &impl Fn(f64) -> f64,
-        slope: &impl Fn(f64) -> f64,
-        rising: bool,
-    ) {
+    fn iterate(&mut self, cubic: &Cubic, rising: bool) -> bool {
         let u = self.u;
-        let g = position(u) - self.edge;
+        let g = cubic.position(u) - self.edge;
         // 1e-9 of a count: far below the slave's microsecond, near the rounding of positions
         // of 10^5 counts.
         if g.abs() < 1e-9 {
-            self.done = true;
-            return;
+            return true;
         }
         if (g < 0.0) == rising {
             self.lo = u;
         } else {
             self.hi = u;
         }
-        let newton = u - g / slope(u);
+        let newton = u - g / cubic.slope(u);
         let next = if newton > self.lo && newton < self.hi {
             newton
         } else {
             0.5 * (self.lo + self.hi)
         };
-        self.done = (next - u).abs() < 1e-12 || self.hi - self.lo < 1e-12;
         self.u = next;
+        (next - u).abs() < 1e-12 || self.hi - self.lo < 1e-12
     }
 }
 
@@ -165,6 +185,57 @@ pub(super) fn merge_by_time(edges: &mut [Edge], mid: usize, scratch: &mut Vec<Ed
         } else {
             edges[k] = scratch[i];
             i += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Every whole count between the ends is pushed once, in time order, at an instant
+        /// where the cubic is on it (to 10^-9 counts), whatever the speeds: steady, from rest,
+        /// braking, or turning back inside the step.
+        #[test]
+        fn each_edge_is_where_the_cubic_crosses_it(
+            a in -1.0e5f64..1.0e5,
+            d in prop_oneof![-40.0f64..40.0, -0.5f64..0.5],
+            v0 in prop_oneof![-60.0f64..60.0, -0.01f64..0.01],
+            v1 in prop_oneof![-60.0f64..60.0, -0.01f64..0.01],
+            slope_fit in 0.3f64..3.0,
+        ) {
+            // Half the cases with end speeds near the straight line's (the common case, where
+            // the inverse cubic starts Newton), half as drawn.
+            let b = a + d;
+            let (v0, v1) = if v0 > 0.0 { (d * slope_fit, d / slope_fit) } else { (v0, v1) };
+            let cubic = Cubic::hermite((a, b), (v0, v1));
+            // Only cubics that cross each count once are a step's motion (the plant's steps
+            // are short enough); others are skipped.
+            let monotone = (0..=1000).map(|i| cubic.position(i as f64 / 1000.0))
+                .collect::<Vec<_>>()
+                .windows(2)
+                .all(|w| if d >= 0.0 { w[1] >= w[0] } else { w[1] <= w[0] });
+            prop_assume!(monotone && a.floor() != b.floor());
+            let (t0, h) = (3.0, 1e-3);
+            let mut edges = Vec::new();
+            push_crossings(&mut edges, 1, t0, h, (a, b), (v0, v1));
+            let n = (a.floor() - b.floor()).abs() as usize;
+            prop_assert_eq!(edges.len(), n);
+            for w in edges.windows(2) {
+                prop_assert!(w[0].0 <= w[1].0, "{:?}", w);
+            }
+            for &(t, j, count_after) in &edges {
+                prop_assert_eq!(j, 1);
+                let edge = if b > a { count_after } else { count_after + 1 } as f64;
+                let u = (t - t0) / h;
+                prop_assert!((-1e-9..=1.0 + 1e-9).contains(&u), "u {u}");
+                // Off by no more than the stopping rule allows (and t's own rounding).
+                let off = (cubic.position(u) - edge).abs();
+                let slope = cubic.slope(u).abs().max(1.0);
+                prop_assert!(off < 1e-9 + 1e-11 * slope, "edge {edge} at u {u}: {off} off");
+            }
         }
     }
 }
