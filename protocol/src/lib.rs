@@ -19,6 +19,7 @@
 
 mod bytes;
 pub mod chunks;
+pub mod crc32;
 pub mod events;
 pub mod link;
 pub mod robot;
@@ -47,7 +48,7 @@ pub const SCHEMA_FINGERPRINT: u32 = 0xb35f_83d1;
 /// names, types and order), whatever `PROTOCOL_VERSION` says.
 pub fn schema_fingerprint() -> u32 {
     use postcard_schema::Schema;
-    let mut digest = CRC32.digest();
+    let mut digest = crc32::Digest::new();
     for schema in [
         serial::HostToMaster::SCHEMA,
         serial::MasterToHost::SCHEMA,
@@ -63,22 +64,9 @@ pub fn schema_fingerprint() -> u32 {
     digest.finalize()
 }
 
-/// The table CRC-32 runs on: 1 KiB on the boards (flash is short), 16 KiB on the host, where
-/// slicing by 16 checks a frame about five times faster (emulation checks every SPI frame on
-/// both boards). The checksums are the same.
-#[cfg(target_os = "none")]
-type CrcTable = crc::Table<1>;
-#[cfg(not(target_os = "none"))]
-type CrcTable = crc::Table<16>;
+struct DigestFlavor<'a>(&'a mut crc32::Digest);
 
-/// CRC-32/ISO-HDLC: the serial frames', the SPI frames' and the fingerprints' (one table in
-/// each image).
-pub(crate) const CRC32: crc::Crc<u32, CrcTable> =
-    crc::Crc::<u32, CrcTable>::new(&crc::CRC_32_ISO_HDLC);
-
-struct DigestFlavor<'a, 'b>(&'a mut crc::Digest<'b, u32, CrcTable>);
-
-impl postcard::ser_flavors::Flavor for DigestFlavor<'_, '_> {
+impl postcard::ser_flavors::Flavor for DigestFlavor<'_> {
     type Output = ();
     fn try_push(&mut self, data: u8) -> postcard::Result<()> {
         self.0.update(&[data]);

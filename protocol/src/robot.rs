@@ -68,7 +68,7 @@ pub struct RobotHeader {
 /// encoder 0, 1, ..., then the header with `fingerprint` zero). The slave computes it over
 /// what it received; equal to the host's, both hold the same bits.
 pub fn fingerprint(wheels: &[WheelPart], exact: &[ExactPart], header: &RobotHeader) -> u32 {
-    let mut digest = crate::CRC32.digest();
+    let mut digest = crate::crc32::Digest::new();
     let mut feed = |bytes: &[u8]| digest.update(bytes);
     let mut buf = [0u8; 64];
     for (w, e) in wheels.iter().zip(exact) {

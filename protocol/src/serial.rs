@@ -266,7 +266,7 @@ pub fn encode<'a, T: Serialize>(msg: &T, out: &'a mut [u8]) -> Result<&'a [u8], 
     let len = postcard::to_slice(msg, &mut raw[..MAX_PAYLOAD])
         .map_err(|_| FrameError::Overflow)?
         .len();
-    let crc = crate::CRC32.checksum(&raw[..len]);
+    let crc = crate::crc32::checksum(&raw[..len]);
     raw[len..len + 4].copy_from_slice(&crc.to_le_bytes());
     let n = cobs::try_encode(&raw[..len + 4], out).map_err(|_| FrameError::Overflow)?;
     let delim = out.get_mut(n).ok_or(FrameError::Overflow)?;
@@ -338,7 +338,7 @@ pub fn decode_frame<T: DeserializeOwned + Serialize>(frame: &mut [u8]) -> Result
     }
     let (payload, crc) = frame[..n].split_at(n - 4);
     let crc = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
-    if crate::CRC32.checksum(payload) != crc {
+    if crate::crc32::checksum(payload) != crc {
         return Err(FrameError::Crc);
     }
     let msg = match postcard::take_from_bytes::<T>(payload) {

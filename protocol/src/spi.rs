@@ -141,7 +141,7 @@ pub const REPORT_SENSOR_BYTES: usize = 40;
 /// heading, as `robot_math::exact::FixedPose` holds them): CRC-32 over their little-endian
 /// bytes. Equal digests at every update is how `play` shows the board computed the same bits.
 pub fn pose_digest(x: i64, y: i64, theta: u64) -> u32 {
-    let mut d = crate::CRC32.digest();
+    let mut d = crate::crc32::Digest::new();
     d.update(&x.to_le_bytes());
     d.update(&y.to_le_bytes());
     d.update(&theta.to_le_bytes());
@@ -267,7 +267,7 @@ pub fn encode<T: SpiFrame>(frame: &T) -> [u8; SPI_FRAME_LEN] {
     // Cannot fail: every frame type's maximum size is checked against the payload at compile
     // time above; a failure would leave a zero payload, which then fails to decode.
     let _ = postcard::to_slice(frame, &mut out[1..1 + SPI_PAYLOAD_LEN]);
-    let crc = crate::CRC32.checksum(&out[..SPI_FRAME_LEN - SPI_CHECK_LEN]);
+    let crc = crate::crc32::checksum(&out[..SPI_FRAME_LEN - SPI_CHECK_LEN]);
     out[SPI_FRAME_LEN - SPI_CHECK_LEN..].copy_from_slice(&crc.to_le_bytes());
     out
 }
@@ -275,21 +275,18 @@ pub fn encode<T: SpiFrame>(frame: &T) -> [u8; SPI_FRAME_LEN] {
 /// Check and decode a received fixed-size frame.
 pub fn decode<T: SpiFrame>(bytes: &[u8; SPI_FRAME_LEN]) -> Result<T, SpiFrameError> {
     let (body, check) = bytes.split_at(SPI_FRAME_LEN - SPI_CHECK_LEN);
-    if crate::CRC32.checksum(body).to_le_bytes() != *check {
+    if crate::crc32::checksum(body).to_le_bytes() != *check {
         return Err(SpiFrameError::Crc);
     }
     if body[0] != T::KIND {
         return Err(SpiFrameError::Kind);
     }
     let payload = &body[1..];
-    let (frame, rest) =
-        postcard::take_from_bytes::<T>(payload).map_err(|_| SpiFrameError::Decode)?;
-    let used = payload.len() - rest.len();
-    // Canonical: zero padding, and the payload is what the frame encodes to.
+    let (frame, _) = postcard::take_from_bytes::<T>(payload).map_err(|_| SpiFrameError::Decode)?;
+    // Canonical: the payload is what the frame encodes to, then zero padding. One comparison
+    // of the whole payload with the frame encoded into zeros checks both.
     let mut again = [0u8; SPI_PAYLOAD_LEN];
-    let canonical = rest.iter().all(|&b| b == 0)
-        && postcard::to_slice(&frame, &mut again).is_ok_and(|e| *e == payload[..used]);
-    if !canonical {
+    if postcard::to_slice(&frame, &mut again).is_err() || again[..] != *payload {
         return Err(SpiFrameError::NonCanonical);
     }
     Ok(frame)
