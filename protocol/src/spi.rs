@@ -282,11 +282,14 @@ pub fn decode<T: SpiFrame>(bytes: &[u8; SPI_FRAME_LEN]) -> Result<T, SpiFrameErr
         return Err(SpiFrameError::Kind);
     }
     let payload = &body[1..];
-    let (frame, _) = postcard::take_from_bytes::<T>(payload).map_err(|_| SpiFrameError::Decode)?;
-    // Canonical: the payload is what the frame encodes to, then zero padding. One comparison
-    // of the whole payload with the frame encoded into zeros checks both.
+    let (frame, rest) =
+        postcard::take_from_bytes::<T>(payload).map_err(|_| SpiFrameError::Decode)?;
+    let used = payload.len() - rest.len();
+    // Canonical: zero padding, and the payload is what the frame encodes to.
     let mut again = [0u8; SPI_PAYLOAD_LEN];
-    if postcard::to_slice(&frame, &mut again).is_err() || again[..] != *payload {
+    let canonical = rest.iter().all(|&b| b == 0)
+        && postcard::to_slice(&frame, &mut again).is_ok_and(|e| *e == payload[..used]);
+    if !canonical {
         return Err(SpiFrameError::NonCanonical);
     }
     Ok(frame)
