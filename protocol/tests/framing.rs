@@ -293,6 +293,19 @@ fn only_canonical_encodings_decode() {
         spi::decode::<MasterFrame>(&padded),
         Err(SpiFrameError::NonCanonical)
     );
+    // Any one bit of the padding set, anywhere in it.
+    let used = 1 + postcard::to_slice(&f, &mut [0u8; 128]).unwrap().len();
+    for at in used..n {
+        for bit in 0..8 {
+            let mut padded = good;
+            padded[at] = 1 << bit;
+            assert_eq!(
+                spi::decode::<MasterFrame>(&with_check(&padded[..n])),
+                Err(SpiFrameError::NonCanonical),
+                "byte {at}, bit {bit}"
+            );
+        }
+    }
     // The payload opens with `seq` as a varint: 7 is `07`; `87 00` is 7 again, over-long.
     assert_eq!(good[1], 0x07);
     let mut long = vec![good[0], 0x87, 0x00];
