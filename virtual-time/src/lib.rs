@@ -217,14 +217,16 @@ impl<'a> Simulation<'a> {
         CLOCK.with(|c| {
             let mut c = c.borrow_mut();
             // Wake-ups registered while the wakers ran (this executor's wakers register none)
-            // join the queue as `schedule_wake` would have added them.
-            for (at, waker) in c.queue.drain(..) {
-                match queue.iter_mut().find(|(_, w)| w.will_wake(&waker)) {
+            // join the queue as `schedule_wake` would have added them. Most often there are
+            // none: the empty list is then just swapped back (draining it was 0.5 % of an
+            // emulation).
+            let during = std::mem::replace(&mut c.queue, queue);
+            for (at, waker) in during {
+                match c.queue.iter_mut().find(|(_, w)| w.will_wake(&waker)) {
                     Some(e) => e.0 = e.0.min(at),
-                    None => queue.push((at, waker)),
+                    None => c.queue.push((at, waker)),
                 }
             }
-            c.queue = queue;
         });
     }
 }
