@@ -11,7 +11,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub struct Bytes<const N: usize> {
-    len: u16,
+    len: u32,
     buf: [u8; N],
 }
 
@@ -36,7 +36,7 @@ impl<const N: usize> Bytes<N> {
         let n = data.len().min(N);
         let mut b = Self::new();
         b.buf[..n].copy_from_slice(&data[..n]);
-        b.len = n as u16;
+        b.len = n as u32;
         b
     }
 
