@@ -178,6 +178,32 @@ impl Trig {
             },
         }
     }
+
+    /// The angles of `y`, a state inside the step that starts at `y0` (whose angles `self`
+    /// has): each turned by the small angle between them, where that angle is small enough
+    /// for a short series to be exact to the last bit of the terms (an RK4 stage's angles
+    /// only weight its slope; the step's end is computed in full, [`Trig::of`], so nothing
+    /// accumulates). `sin_cos` was 6 % of an emulation.
+    fn turned(&self, cfg: &PlantConfig, y0: &State, y: &State) -> Trig {
+        let turn = |(s, c): (f64, f64), from: f64, to: f64| {
+            let d = to - from;
+            if d.abs() > 1e-3 {
+                return to.sin_cos();
+            }
+            // |d| ≤ 10^-3: the first terms left out are below 10^-24.
+            let d2 = d * d;
+            let sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
+            let cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
+            (s * cd + c * sd, c * cd - s * sd)
+        };
+        Trig {
+            theta: turn(self.theta, y0.body.theta, y.body.theta),
+            phi: match cfg.sensors {
+                MeasuringSensors::Carriage { .. } => turn(self.phi, y0.phi, y.phi),
+                MeasuringSensors::Wheels { .. } => (0.0, 1.0),
+            },
+        }
+    }
 }
 
 impl Plant {
@@ -356,11 +382,11 @@ impl Plant {
         let y0 = self.state;
         let k1 = f(start, drive.twist(start), &self.trig);
         let y1 = add(&y0, &k1, h / 2.0);
-        let k2 = f(half, twist_half, &Trig::of(cfg, &y1));
+        let k2 = f(half, twist_half, &self.trig.turned(cfg, &y0, &y1));
         let y2 = add(&y0, &k2, h / 2.0);
-        let k3 = f(half, twist_half, &Trig::of(cfg, &y2));
+        let k3 = f(half, twist_half, &self.trig.turned(cfg, &y0, &y2));
         let y3 = add(&y0, &k3, h);
-        let k4 = f(end, twist_end, &Trig::of(cfg, &y3));
+        let k4 = f(end, twist_end, &self.trig.turned(cfg, &y0, &y3));
         let mut y = y0;
         y = add(&y, &k1, h / 6.0);
         y = add(&y, &k2, h / 3.0);
@@ -490,6 +516,38 @@ mod tests {
         omni()
             .wheel_speeds(t)
             .map(|w| (w / full * 1000.0).round() as i16)
+    }
+
+    #[test]
+    fn angles_turned_inside_a_step_are_the_sines_and_cosines_to_an_ulp() {
+        // Body and carriage headings anywhere, turned by up to 2·10^-3 rad (the series'
+        // range and past it, where `sin_cos` is called): within 2·10^-16 of `sin_cos`.
+        let cfg = cfg();
+        let state = |theta: f64, phi: f64| State {
+            body: Pose2::new(0.0, 0.0, theta),
+            phi,
+            rolled: [0.0; 2],
+            driven: [0.0; 3],
+        };
+        let mut worst = 0.0f64;
+        for i in 0..2000 {
+            let (theta, phi) = (i as f64 * 0.0137 - 13.0, 7.0 - i as f64 * 0.0091);
+            let turn = (i as f64 * 0.618).fract() * 4e-3 - 2e-3;
+            let (y0, y) = (state(theta, phi), state(theta + turn, phi - 0.7 * turn));
+            let (turned, full) = (
+                Trig::of(&cfg, &y0).turned(&cfg, &y0, &y),
+                Trig::of(&cfg, &y),
+            );
+            for (a, b) in [
+                (turned.theta.0, full.theta.0),
+                (turned.theta.1, full.theta.1),
+                (turned.phi.0, full.phi.0),
+                (turned.phi.1, full.phi.1),
+            ] {
+                worst = worst.max((a - b).abs());
+            }
+        }
+        assert!(worst < 2.5e-16, "{worst}");
     }
 
     #[test]
