@@ -444,7 +444,6 @@ fn encoder_positions(
     core::array::from_fn(|i| s.rolled[i] / per_count[i] + phase[i] - phase_floor[i])
 }
 
-/// How many edges' crossings [`Plant::step`] solves side by side.
 /// Time derivative of the state for a body twist, at the state whose angles `trig` has
 /// (nothing else of the state enters it).
 fn derivative(cfg: &PlantConfig, twist: Twist, trig: &Trig) -> State {

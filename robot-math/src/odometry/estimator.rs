@@ -183,9 +183,11 @@ impl Odometry {
                 })
             }
             #[cfg(any(test, feature = "float-methods"))]
-            Method::Arc | Method::Lut | Method::Timing => {
-                State::Float(FloatState::build(self, method, body, t_ns)?)
-            }
+            Method::Arc => State::Float(FloatState::arc(self, body)?),
+            #[cfg(any(test, feature = "float-methods"))]
+            Method::Lut => State::Float(FloatState::lut(self, body)?),
+            #[cfg(any(test, feature = "float-methods"))]
+            Method::Timing => State::Float(FloatState::timing(self, body, t_ns)?),
             #[cfg(not(any(test, feature = "float-methods")))]
             Method::Arc | Method::Lut | Method::Timing => {
                 return Err(Unsupported::FloatMethodsNotBuilt)
@@ -261,13 +263,13 @@ impl Odometry {
     /// saves no registers for it.
     #[inline(never)]
     fn tick_now(&mut self, t_ns: u64, encoder: usize, step: i8) {
+        // Without the float methods the tick is the tracker's and the count's only.
+        #[cfg_attr(not(any(test, feature = "float-methods")), allow(unused_variables))]
         let recorded = self.record_tick(t_ns, encoder, step);
         #[cfg(any(test, feature = "float-methods"))]
         if let (true, State::Float(f)) = (recorded, &mut self.state) {
             f.tick(t_ns, encoder, step);
         }
-        // Without the float methods the tick is the tracker's and the count's only.
-        let _ = recorded;
     }
 
     /// The tick into its wheel's tracker and count; false if it is to be ignored.

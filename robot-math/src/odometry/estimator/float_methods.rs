@@ -7,7 +7,7 @@ use super::{Odometry, State};
 use crate::arc::ArcOdometry;
 use crate::exact::{FixedPose, MAX_ENCODERS};
 use crate::lut::LutOdometry;
-use crate::odometry::{Method, SensorKind, Unsupported};
+use crate::odometry::{SensorKind, Unsupported};
 use crate::ticks::counts_as_ticks;
 use crate::timing::TimingOdometry;
 use crate::Pose2;
@@ -59,48 +59,55 @@ impl LutTables {
 }
 
 impl FloatState {
-    /// `method` (a float one) starting at `body` with `odo`'s current readings at `t_ns`.
-    pub(super) fn build(
+    /// Seed 002's `arc`, from `body` at the current counts.
+    pub(super) fn arc(odo: &Odometry, body: FixedPose) -> Result<FloatState, Unsupported> {
+        let n = odo.layout.encoders();
+        let (solver, start) = odo.float_start(body)?;
+        let counts_f64 = odo.counts.map(|c| c as f64);
+        let k = &odo.layout.metres_per_count()[..n];
+        Ok(FloatState::Arc(ArcOdometry::new(
+            solver,
+            k,
+            start,
+            &counts_f64[..n],
+        )))
+    }
+
+    /// Seed 001's `lut`: its own tables on a differential drive, per-wheel tables elsewhere.
+    pub(super) fn lut(odo: &Odometry, body: FixedPose) -> Result<FloatState, Unsupported> {
+        let (solver, start) = odo.float_start(body)?;
+        let tables = match odo.layout.differential_drive() {
+            Some((step, track)) => LutTables::Differential(LutOdometry::with_origin_offset(
+                step,
+                track,
+                start,
+                odo.lut_origin,
+            )),
+            None => odo.lut_wheels(&solver, start)?,
+        };
+        Ok(FloatState::Lut(Lut {
+            tables,
+            applied: odo.counts,
+        }))
+    }
+
+    /// Seed 000's `timing`, integrating from `t_ns` (it needs every tick's time stamp).
+    pub(super) fn timing(
         odo: &Odometry,
-        method: Method,
         body: FixedPose,
         t_ns: u64,
     ) -> Result<FloatState, Unsupported> {
-        let layout = &odo.layout;
-        let n = layout.encoders();
-        let k = &layout.metres_per_count()[..n];
-        Ok(match method {
-            // `arc` (`exact` never comes here: `Odometry::build` starts it itself).
-            Method::Arc | Method::Exact => {
-                let (solver, start) = odo.float_start(body)?;
-                let counts_f64 = odo.counts.map(|c| c as f64);
-                FloatState::Arc(ArcOdometry::new(solver, k, start, &counts_f64[..n]))
-            }
-            Method::Lut => {
-                let (solver, start) = odo.float_start(body)?;
-                let tables = match layout.differential_drive() {
-                    Some((step, track)) => LutTables::Differential(
-                        LutOdometry::with_origin_offset(step, track, start, odo.lut_origin),
-                    ),
-                    None => odo.lut_wheels(&solver, start)?,
-                };
-                FloatState::Lut(Lut {
-                    tables,
-                    applied: odo.counts,
-                })
-            }
-            Method::Timing => {
-                if odo.sensors != SensorKind::Ticks {
-                    return Err(Unsupported::TimingNeedsTicks);
-                }
-                let (_, start) = odo.float_start(body)?;
-                let mut t = TimingOdometry::from_wheels(&layout.wheels()[..n], k, start)
-                    .map_err(Unsupported::Geometry)?;
-                // Its integration starts here: every wheel taken to sit on an edge now.
-                t.update(t_ns);
-                FloatState::Timing(t)
-            }
-        })
+        if odo.sensors != SensorKind::Ticks {
+            return Err(Unsupported::TimingNeedsTicks);
+        }
+        let n = odo.layout.encoders();
+        let (_, start) = odo.float_start(body)?;
+        let k = &odo.layout.metres_per_count()[..n];
+        let mut t = TimingOdometry::from_wheels(&odo.layout.wheels()[..n], k, start)
+            .map_err(Unsupported::Geometry)?;
+        // Its integration starts here: every wheel taken to sit on an edge now.
+        t.update(t_ns);
+        Ok(FloatState::Timing(t))
     }
 
     /// A tick already counted by [`Odometry::tick`], for the methods whose input is ticks.
