@@ -134,7 +134,9 @@ pub async fn spi_task(mut spi: impl SpiSlave, shared: &SlaveShared, clock: Frame
 mod tests {
     use super::*;
     use protocol::spi::{MasterFrame, SlaveCommand};
+    // The host's critical section and time driver, which the shared state's mutex needs.
     use robot_math::sensors::binary_to_gray;
+    use virtual_time as _;
 
     #[test]
     fn absolute_code_is_inverted_gray_on_the_pins() {
