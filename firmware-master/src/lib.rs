@@ -16,6 +16,10 @@ pub mod ports;
 mod relay;
 mod tasks;
 
+// The host's critical section and time driver, for unit tests that lock the shared state.
+#[cfg(test)]
+use virtual_time as _;
+
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;

@@ -134,8 +134,8 @@ pub async fn spi_task(mut spi: impl SpiSlave, shared: &SlaveShared, clock: Frame
 mod tests {
     use super::*;
     use protocol::spi::{MasterFrame, SlaveCommand};
-    // The host's critical section and time driver, which the shared state's mutex needs.
     use robot_math::sensors::binary_to_gray;
+    // The host's critical section and time driver, which the shared state's mutex needs.
     use virtual_time as _;
 
     #[test]
