@@ -20,7 +20,12 @@ mod tasks;
 #[cfg(test)]
 use virtual_time as _;
 
-use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+#[cfg(target_os = "none")]
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as SharedLock;
+/// In an emulation every task runs on one thread and no interrupt exists: the shared state
+/// takes no lock (see firmware-slave's `shared.rs`). On the board, a critical section.
+#[cfg(not(target_os = "none"))]
+use embassy_sync::blocking_mutex::raw::NoopRawMutex as SharedLock;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
 use protocol::serial::DriveGeometry;
@@ -121,9 +126,9 @@ impl MasterConfig {
 
 /// State shared by the master's tasks. `const`-constructible for a `static` on the board.
 pub struct MasterShared {
-    controller: Mutex<CriticalSectionRawMutex, core::cell::RefCell<Option<Controller>>>,
+    controller: Mutex<SharedLock, core::cell::RefCell<Option<Controller>>>,
     /// Replies for the host (hello, rejections), sent ahead of telemetry.
-    replies: Channel<CriticalSectionRawMutex, protocol::serial::MasterToHost, 4>,
+    replies: Channel<SharedLock, protocol::serial::MasterToHost, 4>,
 }
 
 impl Default for MasterShared {
