@@ -16,10 +16,6 @@ pub mod ports;
 mod relay;
 mod tasks;
 
-// The host's critical section and time driver, for unit tests that lock the shared state.
-#[cfg(test)]
-use virtual_time as _;
-
 #[cfg(target_os = "none")]
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as SharedLock;
 /// In an emulation every task runs on one thread and no interrupt exists: the shared state

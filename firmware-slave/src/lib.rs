@@ -135,8 +135,6 @@ mod tests {
     use super::*;
     use protocol::spi::{MasterFrame, SlaveCommand};
     use robot_math::sensors::binary_to_gray;
-    // The host's critical section and time driver, which the shared state's mutex needs.
-    use virtual_time as _;
 
     #[test]
     fn absolute_code_is_inverted_gray_on_the_pins() {

@@ -6,14 +6,9 @@
 //!   one-driver-per-process rule of embassy-time without tests stepping on each other.
 //! * A small single-thread executor that polls the firmware's async tasks until they all wait,
 //!   and a [`Simulation`] that then jumps the clock to the next timer deadline.
-//! * The host's `critical-section` implementation, which the firmware's embassy mutexes lock.
 //!
 //! Link this crate into every host binary that runs firmware code (and nothing else that
-//! provides an embassy-time driver or a critical section: no `std` or `mock-driver` features
-//! anywhere). A test binary that uses none of its items links it with `use virtual_time as _;`,
-//! else the link fails on `_critical_section_1_0_acquire`.
-
-mod critical_section_impl;
+//! provides an embassy-time driver: no `std` or `mock-driver` features anywhere).
 
 use std::cell::{Cell, RefCell};
 use std::future::Future;
