@@ -7,30 +7,7 @@
 //! checksum to the bit (tested against the `crc` crate at random lengths, and the framing
 //! tests check frames against it too).
 
-/// The CRC-32 of `bytes`.
-#[inline]
-pub fn checksum(bytes: &[u8]) -> u32 {
-    engine::checksum(bytes)
-}
-
-/// A CRC-32 fed piece by piece: equal to [`checksum`] of the pieces joined.
-#[derive(Clone)]
-pub struct Digest(engine::State);
-
-impl Digest {
-    pub fn new() -> Self {
-        Digest(engine::State::new())
-    }
-
-    #[inline]
-    pub fn update(&mut self, bytes: &[u8]) {
-        self.0.update(bytes)
-    }
-
-    pub fn finalize(self) -> u32 {
-        self.0.finalize()
-    }
-}
+pub use engine::{checksum, Digest};
 
 impl Default for Digest {
     fn default() -> Self {
@@ -43,17 +20,21 @@ mod engine {
     const CRC32: crc::Crc<u32, crc::Table<1>> =
         crc::Crc::<u32, crc::Table<1>>::new(&crc::CRC_32_ISO_HDLC);
 
+    /// The CRC-32 of `bytes`.
+    #[inline]
     pub fn checksum(bytes: &[u8]) -> u32 {
         CRC32.checksum(bytes)
     }
 
+    /// A CRC-32 fed piece by piece: equal to [`checksum`] of the pieces joined.
     #[derive(Clone)]
-    pub struct State(crc::Digest<'static, u32, crc::Table<1>>);
+    pub struct Digest(crc::Digest<'static, u32, crc::Table<1>>);
 
-    impl State {
+    impl Digest {
         pub fn new() -> Self {
-            State(CRC32.digest())
+            Digest(CRC32.digest())
         }
+        #[inline]
         pub fn update(&mut self, bytes: &[u8]) {
             self.0.update(bytes)
         }
@@ -65,17 +46,21 @@ mod engine {
 
 #[cfg(not(target_os = "none"))]
 mod engine {
+    /// The CRC-32 of `bytes`.
+    #[inline]
     pub fn checksum(bytes: &[u8]) -> u32 {
         crc32fast::hash(bytes)
     }
 
+    /// A CRC-32 fed piece by piece: equal to [`checksum`] of the pieces joined.
     #[derive(Clone)]
-    pub struct State(crc32fast::Hasher);
+    pub struct Digest(crc32fast::Hasher);
 
-    impl State {
+    impl Digest {
         pub fn new() -> Self {
-            State(crc32fast::Hasher::new())
+            Digest(crc32fast::Hasher::new())
         }
+        #[inline]
         pub fn update(&mut self, bytes: &[u8]) {
             self.0.update(bytes)
         }
