@@ -156,7 +156,7 @@ pub async fn odometry_task(
         // else drained and dropped so the queue never overflows; with the timers as they
         // stood when the last edge was handed over.
         let ticks_live = source == SensorSource::Ticks;
-        let batch = edges.drain(&mut |e| {
+        let batch = edges.drain(|e| {
             if !ticks_live {
                 return;
             }
@@ -364,10 +364,10 @@ fn start_edges(
     counters: &mut impl QuadratureCounters,
 ) -> ([u16; MEASURING_WHEELS], [u8; MEASURING_WHEELS]) {
     for _ in 0..8 {
-        let before = edges.drain(&mut |_| {}).counters;
+        let before = edges.drain(|_| {}).counters;
         let levels = edges.levels();
         let mut quiet = true;
-        let after = edges.drain(&mut |_| quiet = false).counters;
+        let after = edges.drain(|_| quiet = false).counters;
         if let (true, Some(b), Some(a)) = (quiet, before, after) {
             if a == b {
                 return (a, levels);

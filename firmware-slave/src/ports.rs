@@ -89,7 +89,10 @@ pub trait EncoderEdges {
     /// counters at that instant (see [`EdgeBatch`]). Edges after it stay for the next call,
     /// so an edge arriving while this runs can never make the decoded count and the counters
     /// differ.
-    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch;
+    ///
+    /// Generic over `f` so that the emulator's edges (hundreds of thousands a run) reach the
+    /// odometry inlined; a board keeps one copy of its drain by forwarding to a `dyn` one.
+    fn drain(&mut self, f: impl FnMut(EncoderEdge)) -> EdgeBatch;
 }
 
 /// For boards or builds without edge capture: only fixed-rate counts mode is available.
@@ -99,7 +102,7 @@ impl EncoderEdges for NoEdges {
     fn levels(&mut self) -> [u8; MEASURING_WHEELS] {
         [0; MEASURING_WHEELS]
     }
-    fn drain(&mut self, _f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
+    fn drain(&mut self, _f: impl FnMut(EncoderEdge)) -> EdgeBatch {
         EdgeBatch {
             complete: true,
             counters: None,

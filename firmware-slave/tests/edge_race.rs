@@ -74,7 +74,7 @@ impl EncoderEdges for Edges {
         self.0.borrow().count.map(QuadratureDecoder::levels_at)
     }
 
-    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
+    fn drain(&mut self, mut f: impl FnMut(EncoderEdge)) -> EdgeBatch {
         let (edges, counters) = {
             let mut b = self.0.borrow_mut();
             let counters = if b.stale_counters {

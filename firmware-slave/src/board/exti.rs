@@ -138,45 +138,51 @@ impl EncoderEdges for EdgeCapture {
         encoder_levels()
     }
 
-    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
-        // The cut: how many edges are queued, and the timers, with no edge in between. An
-        // edge the timers have counted but whose interrupt has not queued it yet shows as a
-        // pending EXTI line (the EXTI latches the pin edge before the timer's 111 ns input
-        // filter passes it), so inside the critical section a quiet EXTI means the queue and
-        // the timers agree; otherwise let the interrupt run and try again. At tens of kHz of
-        // edges and a sub-microsecond critical section, a retry is rare and three in a row
-        // are rarer still (the cross-check is then skipped once).
-        let cut = (0..3).find_map(|_| {
-            critical_section::with(|_| {
-                (pending(ENCODER_LINES) == 0).then(|| {
-                    let counters = [
-                        // Read-only register reads: the `Qei` drivers (`board/qei.rs`) own these timers.
-                        pac::TIM2.cnt().read().cnt(),
-                        pac::TIM1.cnt().read().cnt(),
-                    ];
-                    (EDGES.len(), counters)
-                })
+    fn drain(&mut self, mut f: impl FnMut(EncoderEdge)) -> EdgeBatch {
+        drain_edges(&mut f)
+    }
+}
+
+/// [`EdgeCapture`]'s drain, once in the image for all its callers.
+#[inline(never)]
+fn drain_edges(f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
+    // The cut: how many edges are queued, and the timers, with no edge in between. An
+    // edge the timers have counted but whose interrupt has not queued it yet shows as a
+    // pending EXTI line (the EXTI latches the pin edge before the timer's 111 ns input
+    // filter passes it), so inside the critical section a quiet EXTI means the queue and
+    // the timers agree; otherwise let the interrupt run and try again. At tens of kHz of
+    // edges and a sub-microsecond critical section, a retry is rare and three in a row
+    // are rarer still (the cross-check is then skipped once).
+    let cut = (0..3).find_map(|_| {
+        critical_section::with(|_| {
+            (pending(ENCODER_LINES) == 0).then(|| {
+                let counters = [
+                    // Read-only register reads: the `Qei` drivers (`board/qei.rs`) own these timers.
+                    pac::TIM2.cnt().read().cnt(),
+                    pac::TIM1.cnt().read().cnt(),
+                ];
+                (EDGES.len(), counters)
             })
-        });
-        // Only the edges up to the cut (or, without one, those queued now): later ones stay
-        // queued for the next drain. The clock is read after they were counted, so every one
-        // of them is older than `now_us`, as `widen_us` needs.
-        let take = cut.map_or_else(|| EDGES.len(), |(queued, _)| queued);
-        let now_us = embassy_time::Instant::now().as_micros();
-        for _ in 0..take {
-            match EDGES.try_receive() {
-                Ok(e) => f(EncoderEdge {
-                    t_us: widen_us(e.t_us, now_us),
-                    encoder: e.encoder,
-                    levels: e.levels,
-                }),
-                Err(_) => break,
-            }
+        })
+    });
+    // Only the edges up to the cut (or, without one, those queued now): later ones stay
+    // queued for the next drain. The clock is read after they were counted, so every one
+    // of them is older than `now_us`, as `widen_us` needs.
+    let take = cut.map_or_else(|| EDGES.len(), |(queued, _)| queued);
+    let now_us = embassy_time::Instant::now().as_micros();
+    for _ in 0..take {
+        match EDGES.try_receive() {
+            Ok(e) => f(EncoderEdge {
+                t_us: widen_us(e.t_us, now_us),
+                encoder: e.encoder,
+                levels: e.levels,
+            }),
+            Err(_) => break,
         }
-        EdgeBatch {
-            complete: !EDGES_LOST.swap(false, Ordering::Relaxed),
-            counters: cut.map(|(_, counters)| counters),
-        }
+    }
+    EdgeBatch {
+        complete: !EDGES_LOST.swap(false, Ordering::Relaxed),
+        counters: cut.map(|(_, counters)| counters),
     }
 }
 

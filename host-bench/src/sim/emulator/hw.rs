@@ -73,7 +73,7 @@ impl EncoderEdges for EmuEdges {
             .map(QuadratureDecoder::levels_at)
     }
 
-    fn drain(&mut self, f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
+    fn drain(&mut self, mut f: impl FnMut(EncoderEdge)) -> EdgeBatch {
         // The plant stands still while the firmware runs: its edges so far and its counters
         // are one instant, as the board's critical section makes them.
         let counters = {
