@@ -116,6 +116,18 @@ impl DcMotor {
 
     /// [`speed_after`](Self::speed_after) for a step whose [`decay`](Self::decay) is known.
     pub fn speed_after_decay(&self, v0: f64, duty: f64, decay: f64) -> f64 {
+        self.speeds_after_decays(v0, duty, [decay])[0]
+    }
+
+    /// [`speed_after_decay`](Self::speed_after_decay) for several decays from one start (the
+    /// instants inside a step that an integrator looks at): the drive, the friction's sign
+    /// and the steady speed are worked out once, each speed exactly as alone.
+    pub fn speeds_after_decays<const N: usize>(
+        &self,
+        v0: f64,
+        duty: f64,
+        decays: [f64; N],
+    ) -> [f64; N] {
         let r = self.wheel_radius_m;
         let drive = self.drive_torque(duty);
         let w0 = v0 / r;
@@ -126,17 +138,19 @@ impl DcMotor {
             drive.signum()
         };
         if w0 == 0.0 && libm::fabs(drive) <= self.coulomb_nm {
-            return 0.0; // stiction holds it
+            return [0.0; N]; // stiction holds it
         }
         let w_ss = (drive - self.coulomb_nm * moving) / self.damping();
-        let w = w_ss + (w0 - w_ss) * decay;
-        // Friction cannot reverse a wheel: crossing zero, it stops (until the next step, which
-        // starts from rest and asks whether the drive beats the friction).
-        if w0 != 0.0 && w * w0 < 0.0 {
-            0.0
-        } else {
-            w * r
-        }
+        decays.map(|decay| {
+            let w = w_ss + (w0 - w_ss) * decay;
+            // Friction cannot reverse a wheel: crossing zero, it stops (until the next step,
+            // which starts from rest and asks whether the drive beats the friction).
+            if w0 != 0.0 && w * w0 < 0.0 {
+                0.0
+            } else {
+                w * r
+            }
+        })
     }
 }
 

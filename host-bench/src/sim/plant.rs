@@ -362,13 +362,13 @@ impl Plant {
         }
         // The motors' exact response inside the step (the duty is held through it), at the
         // three instants RK4 looks at.
-        let wheels_after = |decay: f64| -> [f64; 3] {
-            core::array::from_fn(|i| motor.speed_after_decay(w0[i], duty[i], decay))
-        };
+        let speeds: [[f64; 3]; 3] = core::array::from_fn(|i| {
+            motor.speeds_after_decays(w0[i], duty[i], [1.0, self.decay.1, self.decay.2])
+        });
         let (start, half, end) = (
-            wheels_after(1.0),
-            wheels_after(self.decay.1),
-            wheels_after(self.decay.2),
+            speeds.map(|s| s[0]),
+            speeds.map(|s| s[1]),
+            speeds.map(|s| s[2]),
         );
         // Each wheel-speed triple's twist once (k2 and k3 share the half step's, k4 and the
         // edges' end speed the end's).

@@ -28,8 +28,7 @@ pub(super) fn push_crossings(
         a.floor().min(b.floor()) as i64,
         a.floor().max(b.floor()) as i64,
     );
-    edges.reserve((hi - lo) as usize);
-    for edge in lo + 1..=hi {
+    let solve = |edge: i64| -> Edge {
         let e = edge as f64;
         let mut crossing = Crossing::start(e, guess.at(e));
         for _ in 0..60 {
@@ -38,13 +37,15 @@ pub(super) fn push_crossings(
             }
         }
         let count_after = if rising { edge } else { edge - 1 };
-        edges.push((t0 + h * crossing.u, j, count_after));
-    }
-    if b < a {
-        // Downward, the higher edges are crossed first.
-        let n = edges.len();
-        let k = (hi - lo) as usize;
-        edges[n - k..].reverse();
+        (t0 + h * crossing.u, j, count_after)
+    };
+    // In time order: downward, the higher edges are crossed first. A mapped range knows its
+    // length, so `extend` writes the edges without a capacity check each (as `push` does).
+    let edges_between = lo + 1..hi + 1;
+    if rising {
+        edges.extend(edges_between.map(solve));
+    } else {
+        edges.extend(edges_between.rev().map(solve));
     }
 }
 
