@@ -51,16 +51,20 @@ mod firmware {
         // is stored in flash. `singleton!` keeps it in `.bss` and builds it here, once.
         let shared = cortex_m::singleton!(: MasterShared = MasterShared::new())
             .unwrap_or_else(|| defmt::panic!("main ran twice"));
-        spawner.spawn(defmt::unwrap!(bluepill::heartbeat(board.led)));
-        spawner.spawn(defmt::unwrap!(motion(
-            board.slave,
-            board.serial_rx,
-            board.serial_tx,
-            board.motors,
-            board.encoders,
-            shared,
-            config
-        )));
+        spawner
+            .spawn(bluepill::heartbeat(board.led).unwrap_or_else(|_| bluepill::already_running()));
+        spawner.spawn(
+            motion(
+                board.slave,
+                board.serial_rx,
+                board.serial_tx,
+                board.motors,
+                board.encoders,
+                shared,
+                config,
+            )
+            .unwrap_or_else(|_| bluepill::already_running()),
+        );
     }
 }
 

@@ -50,14 +50,12 @@ mod firmware {
         // is stored in flash. `singleton!` keeps it in `.bss` and builds it here, once.
         let shared = cortex_m::singleton!(: SlaveShared = SlaveShared::new())
             .unwrap_or_else(|| defmt::panic!("main ran twice"));
-        spawner.spawn(defmt::unwrap!(bluepill::heartbeat(board.led)));
-        spawner.spawn(defmt::unwrap!(odometry(
-            board.counters,
-            board.edges,
-            board.abs,
-            board.spi,
-            shared
-        )));
+        spawner
+            .spawn(bluepill::heartbeat(board.led).unwrap_or_else(|_| bluepill::already_running()));
+        spawner.spawn(
+            odometry(board.counters, board.edges, board.abs, board.spi, shared)
+                .unwrap_or_else(|_| bluepill::already_running()),
+        );
     }
 }
 
