@@ -1,5 +1,6 @@
 //! What both omnibench computers share as STM32F103C8 "blue pill" boards: the clock tree, the
-//! status LED, wheel encoders on timers and the panic handler. Each firmware's `board/` layer builds its own peripherals on top of this.
+//! status LED, wheel encoders on timers, the CRC unit as the CRC-32 engine, and the panic
+//! handler. Each firmware's `board/` layer builds its own peripherals on top of this.
 #![no_std]
 
 #[cfg(target_os = "none")]
@@ -93,3 +94,6 @@ pub use board::*;
 
 #[cfg(target_os = "none")]
 mod panic;
+
+#[cfg(target_os = "none")]
+pub mod crc;
