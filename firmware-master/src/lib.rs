@@ -16,11 +16,9 @@ pub mod ports;
 mod relay;
 mod tasks;
 
-#[cfg(target_os = "none")]
-use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex as SharedLock;
-/// In an emulation every task runs on one thread and no interrupt exists: the shared state
-/// takes no lock (see firmware-slave's `shared.rs`). On the board, a critical section.
-#[cfg(not(target_os = "none"))]
+/// The master's tasks are one task, joined in [`run`], on the board as in an emulation, and
+/// no interrupt handler touches their shared state: it takes no lock (see firmware-slave's
+/// `shared.rs`).
 use embassy_sync::blocking_mutex::raw::NoopRawMutex as SharedLock;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
