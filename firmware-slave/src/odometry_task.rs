@@ -103,7 +103,7 @@ pub async fn odometry_task(
         (counters.read_raw(), edges.levels())
     };
     let mut extenders = raw.map(CounterExtender::new);
-    let mut layout: Layout = config.layout.clone();
+    let mut layout: Layout = config.layout;
     let mut robot = layout_fingerprint(&layout);
     let mut source = match config.sensor {
         SensorMode::Counts => SensorSource::Counts,

@@ -173,7 +173,7 @@ mod tests {
             up.wheel(postcard::from_bytes(bytes).unwrap());
             up.exact(e[j]);
         }
-        assert_eq!(up.commit(&h), Ok(layout.clone()));
+        assert_eq!(up.commit(&h), Ok(layout));
         // A part missing, or a changed constant, is refused.
         let mut up = Upload::default();
         up.wheel(w[0]);

@@ -142,7 +142,7 @@ fn ten_times_finer_counts_make_the_same_phase_ten_times_smaller() {
     g.metres_per_count = g.metres_per_count.map(|k| k / 10.0);
     let fine = Layout::from_carriage(&g, Layout::SEED_004.abs().unwrap()).unwrap();
     let s = run(SensorMode::Counts, |o| {
-        o.robot_layout = fine.clone();
+        o.robot_layout = fine;
         o.encoder_phase = Some([0.9, 0.1]);
     });
     let (e, predicted) = (error(&s), phase_error(&s, &fine));

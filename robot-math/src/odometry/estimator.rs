@@ -107,7 +107,7 @@ impl Odometry {
             _ => 0,
         };
         let mut odo = Odometry {
-            layout: layout.clone(),
+            layout: *layout,
             method,
             sensors,
             trackers: counts.map(|c| TickTracker::starting(c, t_ns)),

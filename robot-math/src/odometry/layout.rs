@@ -145,7 +145,7 @@ impl fmt::Display for LayoutError {
 
 /// A robot's odometry sensors: incremental encoders on measuring wheels (body frame, or the
 /// carriage frame with a carriage), optionally a swivel carriage and an absolute encoder.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Layout {
     encoders: u8,
     /// Unused slots: all zero.

@@ -180,7 +180,7 @@ pub fn run_logged(
     // powered on with it.
     let fingerprint = firmware_slave::robot_wire::layout_fingerprint;
     let upload = (fingerprint(&opts.robot_layout) != fingerprint(&opts.slave.layout))
-        .then(|| opts.robot_layout.clone());
+        .then_some(opts.robot_layout);
     let drive = DriveSetup::from_geometry(&scenario.drive)
         .context("the scenario's drive geometry is impossible")?;
     let plant_cfg = PlantConfig {

@@ -83,7 +83,7 @@ impl Options {
             spi_clock_hz: 2_250_000,
             master,
             slave: SlaveConfig::DEFAULT,
-            robot_layout: scenario.layout.clone(),
+            robot_layout: scenario.layout,
             faults: scenario.faults.clone(),
             algorithm: protocol::spi::OdometryAlgorithm::Exact,
             encoder_phase: scenario.encoder_phase,
