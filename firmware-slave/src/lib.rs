@@ -21,6 +21,8 @@ mod recorder;
 pub mod robot_wire;
 mod shared;
 
+#[cfg(test)]
+mod upload_tests;
 pub use odometry_task::odometry_task;
 
 use embassy_futures::join::join;

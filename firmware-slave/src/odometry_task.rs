@@ -86,6 +86,15 @@ fn wire_pose(p: FixedPose) -> protocol::Pose {
     }
 }
 
+/// How the estimator restarts after a command: in which mode, with a committed robot (its
+/// layout and fingerprint, installed only if the estimator takes it), from a source's start
+/// pose with the method that ran before.
+struct Restart {
+    mode: SensorMode,
+    robot: Option<(Layout, u32)>,
+    start: Option<(protocol::Pose, robot_math::odometry::Method)>,
+}
+
 /// Fixed-rate sampling and pose integration.
 pub async fn odometry_task(
     mut counters: impl QuadratureCounters,
@@ -141,7 +150,9 @@ pub async fn odometry_task(
         let now = Instant::now();
         let t_ns = now.as_micros() * 1000;
         let t_us = now.as_micros();
-        let mut status = slave_status::RUNNING | sticky;
+        // This update's own flags; the sticky ones join them when the frame is made, as the
+        // commands below leave them (an installed robot's frame must not still say rejected).
+        let mut status = slave_status::RUNNING;
         if now > next_due + period {
             status |= slave_status::OVERRUN;
         }
@@ -185,32 +196,22 @@ pub async fn odometry_task(
         // Commands: robot uploads and sources here, the rest to the estimator.
         let command = shared.take_command();
         let mut for_estimator = None;
+        // A committed robot, or a live source, restarts the estimator; in one place below
+        // (each place the slave built one took ~0.3 KB of flash).
+        let mut restart: Option<Restart> = None;
         match command.map(|(_, c)| c) {
             Some(SlaveCommand::RobotWheel(p)) => upload.wheel(p),
             Some(SlaveCommand::RobotExact(p)) => upload.exact(p),
-            Some(SlaveCommand::RobotCommit(h)) => {
-                let fresh = upload.commit(&h).ok().and_then(|l| {
-                    SlaveEstimator::new(
-                        &l,
-                        live_mode(source),
-                        t_ns,
-                        &totals,
-                        &edges.levels(),
-                        levels as u16,
-                    )
-                    .ok()
-                    .map(|e| (l, e))
-                });
-                match fresh {
-                    Some((l, e)) => {
-                        layout = l;
-                        estimator = e;
-                        robot = h.fingerprint;
-                        sticky &= !slave_status::ROBOT_REJECTED;
-                    }
-                    None => sticky |= slave_status::ROBOT_REJECTED,
+            Some(SlaveCommand::RobotCommit(h)) => match upload.commit(&h) {
+                Ok(l) => {
+                    restart = Some(Restart {
+                        mode: live_mode(source),
+                        robot: Some((l, h.fingerprint)),
+                        start: None,
+                    })
                 }
-            }
+                Err(_) => sticky |= slave_status::ROBOT_REJECTED,
+            },
             Some(SlaveCommand::SetSource {
                 source: s,
                 reports: r,
@@ -239,26 +240,12 @@ pub async fn odometry_task(
                         Ok(p) => played = Some(p),
                         Err(_) => sticky |= slave_status::ALGORITHM_UNSUPPORTED,
                     }
-                } else if let Ok(e) = SlaveEstimator::new(
-                    &layout,
-                    live_mode(s),
-                    t_ns,
-                    &totals,
-                    &edges.levels(),
-                    levels as u16,
-                ) {
-                    estimator = e;
-                    for_estimator = Some(SlaveCommand::SetPose(start));
-                    if method != robot_math::odometry::Method::Exact {
-                        // Keep the method the host chose (refused: flagged, as a switch is).
-                        let _ = estimator.sample(
-                            t_ns,
-                            &totals,
-                            false,
-                            levels as u16,
-                            Some(SlaveCommand::SetAlgorithm(crate::algorithm_of(method))),
-                        );
-                    }
+                } else {
+                    restart = Some(Restart {
+                        mode: live_mode(s),
+                        robot: None,
+                        start: Some((start, method)),
+                    });
                 }
                 source = s;
                 reports = r;
@@ -270,6 +257,44 @@ pub async fn odometry_task(
                 }
             }
             other => for_estimator = other,
+        }
+        if let Some(r) = restart {
+            let fresh = SlaveEstimator::new(
+                r.robot.as_ref().map_or(&layout, |(l, _)| l),
+                r.mode,
+                t_ns,
+                &totals,
+                &edges.levels(),
+                levels as u16,
+            );
+            match fresh {
+                Ok(e) => {
+                    estimator = e;
+                    if let Some((l, fingerprint)) = r.robot {
+                        layout = l;
+                        robot = fingerprint;
+                        sticky &= !slave_status::ROBOT_REJECTED;
+                    }
+                    if let Some((start, method)) = r.start {
+                        for_estimator = Some(SlaveCommand::SetPose(start));
+                        if method != robot_math::odometry::Method::Exact {
+                            // Keep the method the host chose (refused: flagged, as a switch is).
+                            let _ = estimator.sample(
+                                t_ns,
+                                &totals,
+                                false,
+                                levels as u16,
+                                Some(SlaveCommand::SetAlgorithm(crate::algorithm_of(method))),
+                            );
+                        }
+                    }
+                }
+                Err(_) => {
+                    if r.robot.is_some() {
+                        sticky |= slave_status::ROBOT_REJECTED;
+                    }
+                }
+            }
         }
         if let Some((command_seq, _)) = command {
             shared.acknowledge(command_seq);
