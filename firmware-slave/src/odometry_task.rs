@@ -199,6 +199,7 @@ pub async fn odometry_task(
         // A committed robot, or a live source, restarts the estimator; in one place below
         // (each place the slave built one took ~0.3 KB of flash).
         let mut restart: Option<Restart> = None;
+        let mut new_streams = false;
         match command.map(|(_, c)| c) {
             Some(SlaveCommand::RobotWheel(p)) => upload.wheel(p),
             Some(SlaveCommand::RobotExact(p)) => upload.exact(p),
@@ -249,12 +250,7 @@ pub async fn odometry_task(
                 }
                 source = s;
                 reports = r;
-                recorder = Recorder::new();
-                staged = Staged::new(shared.report_room());
-                if let Reports::Record { .. } = r {
-                    // The absolute encoder first: a recording must say where it starts.
-                    recorder.abs(&mut staged, t_us, levels as u16);
-                }
+                new_streams = true;
             }
             other => for_estimator = other,
         }
@@ -294,6 +290,16 @@ pub async fn odometry_task(
                         sticky |= slave_status::ROBOT_REJECTED;
                     }
                 }
+            }
+        }
+        if new_streams {
+            // After the estimator's restart, which reads the edge levels as close to the
+            // drain above as it can (an edge in between would leave its decoder a step out).
+            recorder = Recorder::new();
+            staged = Staged::new(shared.report_room());
+            if let Reports::Record { .. } = reports {
+                // The absolute encoder first: a recording must say where it starts.
+                recorder.abs(&mut staged, t_us, levels as u16);
             }
         }
         if let Some((command_seq, _)) = command {

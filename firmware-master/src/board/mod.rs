@@ -58,10 +58,10 @@ pub fn init(config: &MasterConfig) -> Board {
     // JTAG off, SWD kept: frees PB4 for motor 1's encoder.
     chip.swj = embassy_stm32::gpio::SwjCfg::SwdOnly;
     let p = embassy_stm32::init(chip);
-    bluepill::crc::install(embassy_stm32::crc::Crc::new(p.CRC));
 
     // Motors first: the driver enable pin goes low (drivers off) as early as possible.
     let motors = Motors::new(p.TIM2, p.PA0, p.PA1, p.PA2, p.PB12, p.PB13, p.PB14, p.PB15);
+    bluepill::crc::install(embassy_stm32::crc::Crc::new(p.CRC));
     let slave = SlaveLink::new(
         p.SPI1, p.PA4, p.PA5, p.PA6, p.PA7, p.DMA1_CH3, p.DMA1_CH2, Irqs,
     );
