@@ -51,6 +51,8 @@ labels! {
     SpiSlaveParse => m3b_case_spi_slave_parse = 10,
     SpiMasterBuild => m3b_case_spi_master_build = 11,
     SpiMasterParse => m3b_case_spi_master_parse = 12,
+    Crc32Table => m3b_case_crc32_table = 14,
+    Crc32Unit => m3b_case_crc32_unit = 15,
     MasterControlStep => m3b_case_master_control_step = 13,
 }
 marker!(m3b_begin = 100);

@@ -45,13 +45,21 @@ pub enum Case {
     SpiSlaveParse,
     SpiMasterBuild,
     SpiMasterParse,
+    /// The CRC-32 of a frame's 124 checked bytes, each engine alone: the `crc` crate's table
+    /// (this image's engine, which the SPI cases above count, and the boards' before they took
+    /// their CRC unit), and the boards' word-by-word engine (`protocol::crc32::checksum_by_words`)
+    /// with a RAM word standing in for the unit's data register: the instructions the board
+    /// runs, less the busy flag's handful; the unit's own 4 cycles a word are not instructions.
+    /// (The stand-in computes no CRC; the instructions do not depend on the data.)
+    Crc32Table,
+    Crc32Unit,
     /// The master's control step following a target (pursuit, kinematics, speed loops,
     /// duties), a fresh slave frame taken just before.
     MasterControlStep,
 }
 
 impl Case {
-    pub const ALL: [Case; 13] = [
+    pub const ALL: [Case; 15] = [
         Case::Empty,
         Case::ExactEdge,
         Case::ExactEdgePlacing,
@@ -64,6 +72,8 @@ impl Case {
         Case::SpiSlaveParse,
         Case::SpiMasterBuild,
         Case::SpiMasterParse,
+        Case::Crc32Table,
+        Case::Crc32Unit,
         Case::MasterControlStep,
     ];
 }
@@ -103,6 +113,7 @@ pub fn run(meter: &mut dyn Meter) {
     );
     counts_updates(meter, &omni, 0, Case::Omni3CountsUpdate);
     spi_frames(meter);
+    crc_engines(meter);
     control_steps(meter);
 }
 
@@ -145,6 +156,41 @@ fn spi_frames(meter: &mut dyn Meter) {
         });
         meter.measure(Case::SpiSlaveParse, &mut || {
             core::hint::black_box(spi::decode::<MasterFrame>(core::hint::black_box(&wire))).ok();
+        });
+    }
+}
+
+/// The CRC-32 of a frame's checked bytes, [`CALLS`] times by each engine.
+fn crc_engines(meter: &mut dyn Meter) {
+    /// The unit's data register, as the board's engine drives it: a volatile store per word,
+    /// a volatile load for the result.
+    struct StandIn(u32);
+    impl protocol::crc32::WordCrcUnit for StandIn {
+        fn reset(&mut self) {
+            // SAFETY: a plain field, written through a valid `&mut`.
+            unsafe { core::ptr::write_volatile(&mut self.0, u32::MAX) }
+        }
+        fn feed(&mut self, word: u32) {
+            // SAFETY: as above.
+            unsafe { core::ptr::write_volatile(&mut self.0, word) }
+        }
+        fn read(&mut self) -> u32 {
+            // SAFETY: as above.
+            unsafe { core::ptr::read_volatile(&self.0) }
+        }
+    }
+    let mut unit = StandIn(0);
+    for k in 0..CALLS {
+        let wire = spi::encode(&slave_frame(k as u32));
+        let body = &wire[..SPI_FRAME_LEN - 4];
+        meter.measure(Case::Crc32Table, &mut || {
+            core::hint::black_box(protocol::crc32::checksum(core::hint::black_box(body)));
+        });
+        meter.measure(Case::Crc32Unit, &mut || {
+            core::hint::black_box(protocol::crc32::checksum_by_words(
+                &mut unit,
+                core::hint::black_box(body),
+            ));
         });
     }
 }
