@@ -280,10 +280,9 @@ fn a_corrupted_and_a_dropped_frame_are_recovered_with_nothing_lost() {
         o.final_error_m, clean.final_error_m,
         "the same poses, so the same error"
     );
-    assert!(
-        o.link_bytes_sent > clean.link_bytes_sent,
-        "the lost frames were sent again"
-    );
+    // Counted, not compared with the clean run's bytes, which its own timeouts can swell on
+    // a loaded machine.
+    assert!(o.frames_resent > 0, "the lost frames were sent again: {o:?}");
 }
 
 /// Issue 10's rates on both links at once: 1 % of serial frames bit-flipped and 5 % lost, each
@@ -321,9 +320,11 @@ fn a_noisy_serial_line_and_spi_wire_lose_nothing_and_stay_bit_exact() {
         if kind == PlayKind::Ticks {
             assert_eq!(o.board_updates, clean.board_updates);
             assert_eq!(o.final_error_m, clean.final_error_m, "the same poses");
-            // The host saw the noise: frames it refused, bytes it sent again.
+            // The host saw the noise: frames it refused, frames it sent again. (Not "more
+            // bytes than the quiet run": on a loaded machine the quiet run's own timeouts
+            // resend too, and once sent more.)
             assert!(o.frames_rejected_by_host > 0, "{o:?}");
-            assert!(o.link_bytes_sent > clean.link_bytes_sent, "{o:?}");
+            assert!(o.frames_resent > 0, "{o:?}");
         }
     }
 }

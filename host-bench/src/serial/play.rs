@@ -63,6 +63,8 @@ pub struct PlayOutcome {
     pub frames_corrupted: u64,
     pub frames_dropped: u64,
     pub frames_rejected_by_host: u64,
+    /// Event frames the host sent again (go-back-N after a gap or a timeout).
+    pub frames_resent: u64,
     pub played_seconds: f64,
     pub wall_seconds: f64,
     pub played_per_wall_second: f64,
@@ -260,6 +262,7 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         frames_corrupted: link.stats.events_frames_corrupted,
         frames_dropped: link.stats.events_frames_dropped,
         frames_rejected_by_host: link.stats.frames_rejected,
+        frames_resent: tx.stats().frames_retransmitted.into(),
         played_seconds,
         wall_seconds,
         played_per_wall_second: played_seconds / wall_seconds.max(1e-9),
