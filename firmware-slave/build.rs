@@ -7,8 +7,10 @@
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=../bluepill/image_opt_level.rs");
+    println!("cargo:rerun-if-changed=board_rate.rs");
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("none") {
         require_image_opt_level();
+        write_board_period();
         // Sections are placed at fixed flash/RAM addresses; page-aligning them would waste flash.
         println!("cargo:rustc-link-arg-bins=--nmagic");
         // cortex-m-rt's linker script; it includes memory.x, which embassy-stm32's `memory-x`
@@ -26,4 +28,23 @@ fn main() {
     }
 }
 
+/// The board's update period from `OMNIBENCH_SLAVE_RATE_HZ`, as `board_period.rs` in
+/// `OUT_DIR` for `src/main.rs`; a rate the slave does not run at stops the build, naming it.
+fn write_board_period() {
+    println!("cargo:rerun-if-env-changed=OMNIBENCH_SLAVE_RATE_HZ");
+    let setting = std::env::var("OMNIBENCH_SLAVE_RATE_HZ").ok();
+    let period_us = board_period_us(setting.as_deref()).unwrap_or_else(|e| panic!("{e}"));
+    let out = std::path::Path::new(&std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"))
+        .join("board_period.rs");
+    std::fs::write(
+        &out,
+        format!(
+            "/// The board's update period, µs (`OMNIBENCH_SLAVE_RATE_HZ` at build time).\n\
+             pub const BOARD_PERIOD_US: u32 = {period_us};\n"
+        ),
+    )
+    .unwrap_or_else(|e| panic!("cannot write {}: {e}", out.display()));
+}
+
 include!("../bluepill/image_opt_level.rs");
+include!("board_rate.rs");

@@ -23,6 +23,10 @@ mod shared;
 
 #[cfg(test)]
 mod upload_tests;
+// The board rate setting's check, which the build script runs (see `board_rate.rs`).
+#[cfg(test)]
+#[path = "../board_rate.rs"]
+mod board_rate;
 pub use odometry_task::odometry_task;
 
 use embassy_futures::join::join;

@@ -17,8 +17,19 @@ mod firmware {
     use crate::board;
 
     /// The board configuration (the emulator runs the same one): seed 004's sensors, every
-    /// encoder edge time-stamped (EXTI, `board/exti.rs`) with the timers cross-checking.
-    static CONFIG: SlaveConfig = SlaveConfig::DEFAULT;
+    /// encoder edge time-stamped (EXTI, `board/exti.rs`) with the timers cross-checking, and
+    /// the update rate the image was built for (1 kHz unless `OMNIBENCH_SLAVE_RATE_HZ` says
+    /// otherwise; the emulator's `--slave-rate` matches it).
+    static CONFIG: SlaveConfig = SlaveConfig {
+        update_period_us: board_period::BOARD_PERIOD_US,
+        ..SlaveConfig::DEFAULT
+    };
+
+    /// The update period the image was built for (`OMNIBENCH_SLAVE_RATE_HZ`, checked by
+    /// `build.rs`; 1 kHz when unset).
+    mod board_period {
+        include!(concat!(env!("OUT_DIR"), "/board_period.rs"));
+    }
 
     /// Runs the whole portable firmware; it never returns.
     #[embassy_executor::task]
