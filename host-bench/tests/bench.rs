@@ -282,7 +282,10 @@ fn a_corrupted_and_a_dropped_frame_are_recovered_with_nothing_lost() {
     );
     // Counted, not compared with the clean run's bytes, which its own timeouts can swell on
     // a loaded machine.
-    assert!(o.frames_resent > 0, "the lost frames were sent again: {o:?}");
+    assert!(
+        o.frames_resent > 0,
+        "the lost frames were sent again: {o:?}"
+    );
 }
 
 /// Issue 10's rates on both links at once: 1 % of serial frames bit-flipped and 5 % lost, each
