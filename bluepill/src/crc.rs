@@ -5,7 +5,8 @@
 //! checksum, so the unit is never shared. The busy flag makes that a fact rather than a
 //! promise: should a checksum ever start while another runs (in an interrupt handler, say), it
 //! takes the bit-by-bit engine instead of corrupting the unit's register. A flag, not a
-//! mutex: embassy-sync's cost 150 B more and a critical section per frame.
+//! mutex: embassy-sync's cost 100 B more of the slave's flash, and a critical section per
+//! frame.
 
 use core::sync::atomic::{AtomicU8, Ordering};
 use embassy_stm32::crc::Crc;
