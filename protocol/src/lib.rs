@@ -26,6 +26,7 @@ pub mod robot;
 pub mod serial;
 pub mod spi;
 mod units;
+mod writer;
 
 pub use bytes::Bytes;
 pub use units::{metres_to_um, BinaryAngle, Point, Pose};
@@ -56,12 +57,15 @@ pub fn schema_fingerprint() -> u32 {
         spi::SlaveFrame::SCHEMA,
         spi::Report::SCHEMA,
     ] {
-        // A flavor that feeds the digest directly: no buffer, works the same on the firmware.
-        let flavor = DigestFlavor(&mut digest);
-        // Serialising a schema into a digest cannot fail: the flavor never refuses a byte.
-        let _ = postcard::serialize_with_flavor(schema, flavor);
+        feed_digest(&mut digest, schema);
     }
     digest.finalize()
+}
+
+/// Feed `value`'s postcard form to `digest`, with no buffer between.
+fn feed_digest<T: serde::Serialize + ?Sized>(digest: &mut crc32::Digest, value: &T) {
+    // Serialising into a digest cannot fail: the flavor never refuses a byte.
+    let _ = postcard::serialize_with_flavor(value, DigestFlavor(digest));
 }
 
 struct DigestFlavor<'a>(&'a mut crc32::Digest);

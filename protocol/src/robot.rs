@@ -69,23 +69,15 @@ pub struct RobotHeader {
 /// what it received; equal to the host's, both hold the same bits.
 pub fn fingerprint(wheels: &[WheelPart], exact: &[ExactPart], header: &RobotHeader) -> u32 {
     let mut digest = crate::crc32::Digest::new();
-    let mut feed = |bytes: &[u8]| digest.update(bytes);
-    let mut buf = [0u8; 64];
     for (w, e) in wheels.iter().zip(exact) {
-        if let Ok(b) = postcard::to_slice(w, &mut buf) {
-            feed(b);
-        }
-        if let Ok(b) = postcard::to_slice(e, &mut buf) {
-            feed(b);
-        }
+        crate::feed_digest(&mut digest, w);
+        crate::feed_digest(&mut digest, e);
     }
     let h = RobotHeader {
         fingerprint: 0,
         ..*header
     };
-    if let Ok(b) = postcard::to_slice(&h, &mut buf) {
-        feed(b);
-    }
+    crate::feed_digest(&mut digest, &h);
     digest.finalize()
 }
 

@@ -263,7 +263,7 @@ pub enum FrameError {
 /// Encode `msg` as one delimited frame into `out`; returns the bytes to send.
 pub fn encode<'a, T: Serialize>(msg: &T, out: &'a mut [u8]) -> Result<&'a [u8], FrameError> {
     let mut raw = [0u8; MAX_PAYLOAD + 4];
-    let len = postcard::to_slice(msg, &mut raw[..MAX_PAYLOAD])
+    let len = crate::writer::to_slice(msg, &mut raw[..MAX_PAYLOAD])
         .map_err(|_| FrameError::Overflow)?
         .len();
     let crc = crate::crc32::checksum(&raw[..len]);

@@ -268,7 +268,7 @@ pub fn encode<T: SpiFrame>(frame: &T) -> [u8; SPI_FRAME_LEN] {
     out[0] = T::KIND;
     // Cannot fail: every frame type's maximum size is checked against the payload at compile
     // time above; a failure would leave a zero payload, which then fails to decode.
-    let _ = postcard::to_slice(frame, &mut out[1..1 + SPI_PAYLOAD_LEN]);
+    let _ = crate::writer::to_slice(frame, &mut out[1..1 + SPI_PAYLOAD_LEN]);
     let crc = crate::crc32::checksum(&out[..SPI_FRAME_LEN - SPI_CHECK_LEN]);
     out[SPI_FRAME_LEN - SPI_CHECK_LEN..].copy_from_slice(&crc.to_le_bytes());
     out

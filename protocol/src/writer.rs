@@ -1,0 +1,101 @@
+//! postcard's output written into a byte slice one byte at a time.
+//!
+//! postcard's own `to_slice` copies every varint (1 to 5 bytes) into the slice with
+//! `copy_from_slice` of a length known only at run time: a call to the C library's `memmove` on
+//! the host (4 % of an emulation, whose boards build and check two SPI frames a millisecond)
+//! and to `compiler_builtins`' `memcpy` on the boards. A byte at a time, each byte is one
+//! checked store.
+
+use postcard::ser_flavors::Flavor;
+use serde::Serialize;
+
+/// A postcard output flavor: the bytes go to `buf` from its start, one checked store each.
+struct ByteWriter<'a> {
+    buf: &'a mut [u8],
+    used: usize,
+}
+
+impl Flavor for ByteWriter<'_> {
+    type Output = usize;
+
+    // `try_extend` is the trait's: a `try_push` per byte (a loop that stops at the first
+    // refusal, which the compiler does not turn back into a `memcpy` call).
+    #[inline(always)]
+    fn try_push(&mut self, byte: u8) -> postcard::Result<()> {
+        let slot = self
+            .buf
+            .get_mut(self.used)
+            .ok_or(postcard::Error::SerializeBufferFull)?;
+        *slot = byte;
+        self.used += 1;
+        Ok(())
+    }
+
+    fn finalize(self) -> postcard::Result<usize> {
+        Ok(self.used)
+    }
+}
+
+/// `postcard::to_slice` through [`ByteWriter`]: the same bytes, the same errors.
+pub(crate) fn to_slice<'b, T: Serialize + ?Sized>(
+    value: &T,
+    buf: &'b mut [u8],
+) -> postcard::Result<&'b mut [u8]> {
+    let used = postcard::serialize_with_flavor(
+        value,
+        ByteWriter {
+            buf: &mut *buf,
+            used: 0,
+        },
+    )?;
+    Ok(&mut buf[..used])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spi::{Chunk, MasterFrame, SlaveFrame};
+    use crate::{Bytes, Pose};
+
+    /// The same bytes as postcard's `to_slice`, and the same refusal of a buffer too short,
+    /// on both SPI frames and a serial message with a byte string.
+    #[test]
+    fn writes_what_postcards_to_slice_writes() {
+        fn same<T: Serialize>(value: &T) {
+            let (mut ours, mut theirs) = ([0u8; 300], [0u8; 300]);
+            let want = postcard::to_slice(value, &mut theirs).unwrap().to_vec();
+            assert_eq!(to_slice(value, &mut ours).unwrap(), &want[..]);
+            for short in 0..want.len() {
+                assert_eq!(
+                    to_slice(value, &mut ours[..short]),
+                    Err(postcard::Error::SerializeBufferFull)
+                );
+            }
+        }
+        let chunk = Chunk {
+            offset: 1 << 30,
+            bytes: Bytes::from_slice_truncating(&[0xab; 56]),
+        };
+        // Varints of every length, and a byte string.
+        same(&SlaveFrame {
+            seq: u16::MAX,
+            time_us: u32::MAX,
+            armed_us: 1 << 20,
+            pose: Pose::from_si(-1.5, 2.25, 3.0),
+            status: 0x1234,
+            rx_rejected: 300,
+            robot: 0xdead_beef,
+            period_us: 100,
+            events_next: 1 << 27,
+            reports: chunk,
+            ..SlaveFrame::default()
+        });
+        same(&MasterFrame {
+            seq: 200,
+            events: chunk,
+            reports_next: 70_000,
+            ..MasterFrame::default()
+        });
+        same(&(u64::MAX, -1i32, 300u16, [7u8; 40].as_slice()));
+    }
+}
