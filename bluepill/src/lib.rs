@@ -93,6 +93,9 @@ mod board {
 pub use board::*;
 
 #[cfg(target_os = "none")]
+mod mem;
+
+#[cfg(target_os = "none")]
 mod panic;
 
 #[cfg(target_os = "none")]

@@ -81,6 +81,73 @@ fn omnibench_crc32(bytes: &[u8]) -> u32 {
     TABLE.checksum(bytes)
 }
 
+// The boards' memory copy and clear (`bluepill`'s), so the cases count what the boards run,
+// and checked here on a Cortex-M3 before anything is measured.
+#[path = "../../bluepill/src/mem.rs"]
+mod mem;
+
+extern "C" {
+    fn __aeabi_memcpy(dest: *mut u8, src: *const u8, n: usize);
+    fn __aeabi_memcpy4(dest: *mut u8, src: *const u8, n: usize);
+    fn __aeabi_memclr(dest: *mut u8, n: usize);
+    fn __aeabi_memclr4(dest: *mut u8, n: usize);
+    fn __aeabi_memset(dest: *mut u8, n: usize, byte: i32);
+}
+
+/// Every routine of [`mem`] on every length to 40 B from and to every offset in a word its
+/// contract allows (the `4` forms word-aligned), inside guarded buffers: the bytes it was to
+/// write are what a volatile byte loop computes, and no byte around them changed. A failure
+/// stops the run (the script then fails): a case's count would mean nothing on a wrong copy.
+fn check_mem() {
+    const N: usize = 64;
+    let pattern = |k: usize| (k as u8).wrapping_mul(37).wrapping_add(11);
+    // (routine, aligned only, reads a source): memcpy, memcpy4, memclr, memclr4, memset.
+    let routines = [
+        (0, false, true),
+        (1, true, true),
+        (2, false, false),
+        (3, true, false),
+    ];
+    for (routine, aligned, copies) in routines.into_iter().chain([(4, false, false)]) {
+        for (to, from) in (0..16).map(|k| (k / 4, k % 4)) {
+            if (aligned && to + from != 0) || (!copies && from != 0) {
+                continue;
+            }
+            for n in 0..=40 {
+                let mut src = [0u32; N / 4];
+                let mut dst = [0u32; N / 4];
+                let (s, d) = (src.as_mut_ptr() as *mut u8, dst.as_mut_ptr() as *mut u8);
+                // SAFETY: every access is inside the two N-byte buffers (4 + 3 + 40 < N).
+                unsafe {
+                    for k in 0..N {
+                        write_volatile(s.add(k), pattern(k));
+                        write_volatile(d.add(k), 0xa5);
+                    }
+                    let (at, src_at) = (d.add(4 + to), s.add(4 + from) as *const u8);
+                    match routine {
+                        0 => __aeabi_memcpy(at, src_at, n),
+                        1 => __aeabi_memcpy4(at, src_at, n),
+                        2 => __aeabi_memclr(at, n),
+                        3 => __aeabi_memclr4(at, n),
+                        _ => __aeabi_memset(at, n, 0x3c),
+                    }
+                    for k in 0..N {
+                        let want = match routine {
+                            _ if !(4 + to..4 + to + n).contains(&k) => 0xa5,
+                            0 | 1 => pattern(k - to + from),
+                            2 | 3 => 0,
+                            _ => 0x3c,
+                        };
+                        if core::ptr::read_volatile(d.add(k)) != want {
+                            debug::exit(debug::EXIT_FAILURE);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 struct Markers;
 
 impl Meter for Markers {
@@ -95,6 +162,7 @@ impl Meter for Markers {
 
 #[entry]
 fn main() -> ! {
+    check_mem();
     cases::run(&mut Markers);
     debug::exit(debug::EXIT_SUCCESS);
     // Semihosting ends the run; without a host to end it, sleep.

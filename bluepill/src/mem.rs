@@ -1,0 +1,89 @@
+//! The images' memory copy and clear, small: the ARM EABI entry points the compiler calls for
+//! `copy_nonoverlapping` and for zeroing (`__aeabi_memcpy*`, `__aeabi_memclr*`,
+//! `__aeabi_memset*`), in place of `compiler_builtins`' (weak symbols, so these win at link).
+//!
+//! `compiler_builtins` copies with unrolled, misalignment-shifting word loops: 1 294 B of each
+//! image for copies that are mostly a frame or a struct of a few dozen bytes, while the slave
+//! must fit in 32 KiB. These are a word loop where the caller promises alignment (the `4` and
+//! `8` forms, most of the calls) and a byte loop otherwise: 64 B in all. A word costs
+//! four instructions, a byte four: a 128 B SPI frame copied word-aligned is ~130 instructions
+//! (`compiler_builtins`: ~70), byte by byte ~520.
+//!
+//! In assembly, not Rust: LLVM turns a byte-copy loop back into a `memcpy` call, which here
+//! would call itself. Included by `m3-bench`'s image too, so its counts are the boards'.
+
+core::arch::global_asm!(
+    ".section .text.omnibench_mem,\"ax\",%progbits",
+    ".syntax unified",
+    ".thumb",
+    // __aeabi_memcpy(dest r0, src r1, n r2): any alignment. Both word-aligned (most copies
+    // the compiler could not prove so are), on to the word loop; else a byte at a time.
+    ".global __aeabi_memcpy",
+    ".thumb_func",
+    "__aeabi_memcpy:",
+    "orr r3, r0, r1",
+    "lsls r3, r3, #30",
+    "bne 3f",
+    // __aeabi_memcpy4/8: both word-aligned. Words while four bytes are left, then the bytes.
+    ".global __aeabi_memcpy4",
+    ".global __aeabi_memcpy8",
+    ".thumb_func",
+    "__aeabi_memcpy4:",
+    "1:",
+    "subs r2, r2, #4",
+    "bcc 2f",
+    "ldr r3, [r1], #4",
+    "str r3, [r0], #4",
+    "b 1b",
+    "2:",
+    "adds r2, r2, #4",
+    "3:",
+    "cbz r2, 4f",
+    "5:",
+    "ldrb r3, [r1], #1",
+    "strb r3, [r0], #1",
+    "subs r2, r2, #1",
+    "bne 5b",
+    "4:",
+    "bx lr",
+    ".thumb_set __aeabi_memcpy8, __aeabi_memcpy4",
+    // __aeabi_memclr4/8(dest r0, n r1): word-aligned. Zero words, then bytes.
+    ".global __aeabi_memclr4",
+    ".global __aeabi_memclr8",
+    ".thumb_func",
+    "__aeabi_memclr4:",
+    "movs r2, #0",
+    "6:",
+    "subs r1, r1, #4",
+    "bcc 7f",
+    "str r2, [r0], #4",
+    "b 6b",
+    "7:",
+    "adds r1, r1, #4",
+    "b 8f",
+    ".thumb_set __aeabi_memclr8, __aeabi_memclr4",
+    // __aeabi_memclr(dest r0, n r1): any alignment (word-aligned, on to the word loop);
+    // __aeabi_memset*(dest r0, n r1, byte r2) (the EABI's argument order, not C's): a byte
+    // at a time.
+    ".global __aeabi_memclr",
+    ".thumb_func",
+    "__aeabi_memclr:",
+    "lsls r3, r0, #30",
+    "beq __aeabi_memclr4",
+    "movs r2, #0",
+    ".global __aeabi_memset",
+    ".global __aeabi_memset4",
+    ".global __aeabi_memset8",
+    ".thumb_func",
+    "__aeabi_memset:",
+    "8:",
+    "cbz r1, 10f",
+    "9:",
+    "strb r2, [r0], #1",
+    "subs r1, r1, #1",
+    "bne 9b",
+    "10:",
+    "bx lr",
+    ".thumb_set __aeabi_memset4, __aeabi_memset",
+    ".thumb_set __aeabi_memset8, __aeabi_memset",
+);
