@@ -5,7 +5,7 @@
 //! `compiler_builtins` copies with unrolled, misalignment-shifting word loops: 1 294 B of each
 //! image for copies that are mostly a frame or a struct of a few dozen bytes, while the slave
 //! must fit in 32 KiB. These are a word loop where the caller promises alignment (the `4` and
-//! `8` forms, most of the calls) and a byte loop otherwise: 64 B in all. A word costs
+//! `8` forms, most of the calls) and a byte loop otherwise: 76 B in all. A word costs
 //! four instructions, a byte four: a 128 B SPI frame copied word-aligned is ~130 instructions
 //! (`compiler_builtins`: ~70), byte by byte ~520.
 //!

@@ -7,7 +7,7 @@
 //! instructions come before `m3b_begin`). Each marker and label writes its own number to a
 //! volatile static, so the linker cannot fold two of them into one symbol.
 
-use core::ptr::{addr_of_mut, write_volatile};
+use core::ptr::{addr_of_mut, read_volatile, write_volatile};
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::debug;
@@ -81,8 +81,10 @@ fn omnibench_crc32(bytes: &[u8]) -> u32 {
     TABLE.checksum(bytes)
 }
 
-// The boards' memory copy and clear (`bluepill`'s), so the cases count what the boards run,
-// and checked here on a Cortex-M3 before anything is measured.
+// The boards' memory copy and clear and their 64-bit division (`bluepill`'s), so the cases
+// count what the boards run, and checked here on a Cortex-M3 before anything is measured.
+#[path = "../../bluepill/src/divide.rs"]
+mod divide;
 #[path = "../../bluepill/src/mem.rs"]
 mod mem;
 
@@ -148,6 +150,36 @@ fn check_mem() {
     }
 }
 
+/// 64-bit division through the EABI's calls (the operands read volatile, so the compiler
+/// cannot fold them), on numbers of every size: the quotient times the divisor plus the
+/// remainder gives the dividend back (multiplication does not divide), the remainder is
+/// below the divisor and has the dividend's sign. A failure stops the run.
+fn check_divide() {
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    for k in 0..2000u32 {
+        let (n, d) = (next() >> (k % 64), next() >> (k / 64 % 64) | 1);
+        // SAFETY: reads of live locals.
+        let (n, d) = unsafe { (read_volatile(&n), read_volatile(&d)) };
+        let (q, r) = (n / d, n % d);
+        let back = q.checked_mul(d).and_then(|p| p.checked_add(r));
+        let (sa, sb) = (n as i64, d as i64);
+        let (sq, sr) = if sb == -1 { (0, 0) } else { (sa / sb, sa % sb) };
+        let signed_ok = sb == -1
+            || (sq.wrapping_mul(sb).wrapping_add(sr) == sa
+                && sr.unsigned_abs() < sb.unsigned_abs()
+                && (sr == 0 || (sr < 0) == (sa < 0)));
+        if back != Some(n) || r >= d || !signed_ok {
+            debug::exit(debug::EXIT_FAILURE);
+        }
+    }
+}
+
 struct Markers;
 
 impl Meter for Markers {
@@ -163,6 +195,7 @@ impl Meter for Markers {
 #[entry]
 fn main() -> ! {
     check_mem();
+    check_divide();
     cases::run(&mut Markers);
     debug::exit(debug::EXIT_SUCCESS);
     // Semihosting ends the run; without a host to end it, sleep.
