@@ -33,7 +33,13 @@ fn main() {
 fn write_board_period() {
     println!("cargo:rerun-if-env-changed=OMNIBENCH_SLAVE_RATE_HZ");
     let setting = std::env::var("OMNIBENCH_SLAVE_RATE_HZ").ok();
-    let period_us = board_period_us(setting.as_deref()).unwrap_or_else(|e| panic!("{e}"));
+    let period_us = board_period_us(setting.as_deref()).unwrap_or_else(|| {
+        panic!(
+            "OMNIBENCH_SLAVE_RATE_HZ={:?}: the slave's update rate is one of {BOARD_RATES_HZ:?} \
+             Hz (unset: {DEFAULT_RATE_HZ})",
+            setting.unwrap_or_default()
+        )
+    });
     let out = std::path::Path::new(&std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"))
         .join("board_period.rs");
     std::fs::write(

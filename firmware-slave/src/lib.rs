@@ -23,10 +23,10 @@ mod shared;
 
 #[cfg(test)]
 mod upload_tests;
-// The board rate setting's check, which the build script runs (see `board_rate.rs`).
-#[cfg(test)]
+// The board's update rates: a build setting, which the build script checks (see
+// `board_rate.rs`), and the emulator's `--slave-rate`.
 #[path = "../board_rate.rs"]
-mod board_rate;
+pub mod board_rate;
 pub use odometry_task::odometry_task;
 
 use embassy_futures::join::join;

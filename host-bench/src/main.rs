@@ -43,8 +43,8 @@ enum Command {
         /// every edge with its `timestamps` (edge interrupts) [default: the board's, timestamps].
         #[arg(long, value_parser = ["counts", "timestamps"])]
         sensor: Option<String>,
-        /// The slave's odometry update rate, Hz [default: the board's, 1000].
-        #[arg(long, value_name = "HZ", value_parser = ["1000", "2000", "5000", "10000"])]
+        /// The slave's odometry update rate, Hz [default: the board's own].
+        #[arg(long, value_name = "HZ", value_parser = slave_rates())]
         slave_rate: Option<String>,
         /// Print the summary as one JSON object instead of text.
         #[arg(long)]
@@ -236,6 +236,14 @@ fn parse_phase(s: &str) -> Result<[f64; 2], String> {
 }
 
 /// An odometry method by name; unknown names are refused with the list.
+/// `--slave-rate`'s values: the rates a slave board can be built for.
+fn slave_rates() -> clap::builder::PossibleValuesParser {
+    let rates = firmware_slave::board_rate::BOARD_RATES_HZ;
+    clap::builder::PossibleValuesParser::new(
+        rates.map(|hz| clap::builder::PossibleValue::new(hz.to_string())),
+    )
+}
+
 fn parse_method(name: &str) -> Result<robot_math::odometry::Method, String> {
     robot_math::odometry::Method::from_name(name).ok_or_else(|| {
         format!(
@@ -294,8 +302,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 // The board's configuration.
                 _ => {}
             }
-            if let Some(hz) = slave_rate.as_deref().and_then(|r| r.parse::<u32>().ok()) {
-                opts.slave.update_period_us = 1_000_000 / hz;
+            let rate = slave_rate.as_deref().and_then(|r| r.parse::<u32>().ok());
+            if let Some(period_us) = rate.and_then(firmware_slave::board_rate::period_us) {
+                opts.slave.update_period_us = period_us;
             }
             // The command line over the scenario's own settings.
             opts.encoder_phase = encoder_phase.or(opts.encoder_phase);
