@@ -5,7 +5,7 @@
 //! `compiler_builtins` copies with unrolled, misalignment-shifting word loops: 1 294 B of each
 //! image for copies that are mostly a frame or a struct of a few dozen bytes, while the slave
 //! must fit in 32 KiB. These are a word loop where the caller promises alignment (the `4` and
-//! `8` forms, most of the calls) and a byte loop otherwise: 76 B in all. A word costs
+//! `8` forms, most of the calls) and a byte loop otherwise: 74 B in all. A word costs
 //! four instructions, a byte four: a 128 B SPI frame copied word-aligned is ~130 instructions
 //! (`compiler_builtins`: ~70), byte by byte ~520.
 //!
@@ -13,20 +13,25 @@
 //! would call itself. Included by `m3-bench`'s image too, so its counts are the boards'.
 
 core::arch::global_asm!(
-    ".section .text.omnibench_mem,\"ax\",%progbits",
+    ".pushsection .text.omnibench_mem,\"ax\",%progbits",
     ".syntax unified",
     ".thumb",
+    ".p2align 2",
     // __aeabi_memcpy(dest r0, src r1, n r2): any alignment. Both word-aligned (most copies
     // the compiler could not prove so are), on to the word loop; else a byte at a time.
     ".global __aeabi_memcpy",
+    ".type __aeabi_memcpy, %function",
     ".thumb_func",
     "__aeabi_memcpy:",
     "orr r3, r0, r1",
     "lsls r3, r3, #30",
     "bne 3f",
+    // Each entry's size ends where the next entry starts: code one falls into is counted once.
+    ".size __aeabi_memcpy, . - __aeabi_memcpy",
     // __aeabi_memcpy4/8: both word-aligned. Words while four bytes are left, then the bytes.
     ".global __aeabi_memcpy4",
     ".global __aeabi_memcpy8",
+    ".type __aeabi_memcpy4, %function",
     ".thumb_func",
     "__aeabi_memcpy4:",
     "1:",
@@ -46,12 +51,15 @@ core::arch::global_asm!(
     "bne 5b",
     "4:",
     "bx lr",
+    ".size __aeabi_memcpy4, . - __aeabi_memcpy4",
     ".thumb_set __aeabi_memcpy8, __aeabi_memcpy4",
     // __aeabi_memclr4/8(dest r0, n r1): word-aligned. Zero words, then bytes.
     ".global __aeabi_memclr4",
     ".global __aeabi_memclr8",
+    ".type __aeabi_memclr4, %function",
     ".thumb_func",
     "__aeabi_memclr4:",
+    "11:",
     "movs r2, #0",
     "6:",
     "subs r1, r1, #4",
@@ -61,19 +69,23 @@ core::arch::global_asm!(
     "7:",
     "adds r1, r1, #4",
     "b 8f",
+    ".size __aeabi_memclr4, . - __aeabi_memclr4",
     ".thumb_set __aeabi_memclr8, __aeabi_memclr4",
     // __aeabi_memclr(dest r0, n r1): any alignment (word-aligned, on to the word loop);
     // __aeabi_memset*(dest r0, n r1, byte r2) (the EABI's argument order, not C's): a byte
     // at a time.
     ".global __aeabi_memclr",
+    ".type __aeabi_memclr, %function",
     ".thumb_func",
     "__aeabi_memclr:",
     "lsls r3, r0, #30",
-    "beq __aeabi_memclr4",
+    "beq 11b",
     "movs r2, #0",
+    ".size __aeabi_memclr, . - __aeabi_memclr",
     ".global __aeabi_memset",
     ".global __aeabi_memset4",
     ".global __aeabi_memset8",
+    ".type __aeabi_memset, %function",
     ".thumb_func",
     "__aeabi_memset:",
     "8:",
@@ -84,6 +96,8 @@ core::arch::global_asm!(
     "bne 9b",
     "10:",
     "bx lr",
+    ".size __aeabi_memset, . - __aeabi_memset",
     ".thumb_set __aeabi_memset4, __aeabi_memset",
     ".thumb_set __aeabi_memset8, __aeabi_memset",
+    ".popsection",
 );
