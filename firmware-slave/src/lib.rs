@@ -66,7 +66,7 @@ impl SlaveConfig {
     pub const DEFAULT: SlaveConfig = SlaveConfig {
         layout: Layout::SEED_004,
         sensor: SensorMode::TickTimestamps,
-        update_period_us: 1_000,
+        update_period_us: 1_000_000 / board_rate::DEFAULT_RATE_HZ,
     };
 
     /// The absolute encoder position (`0..2^bits`) the pins stand for (0 without one).
