@@ -18,10 +18,10 @@ pub(super) fn push_crossings(
 ) {
     let cubic = Cubic::hermite((a, b), (v0, v1));
     // Where the cubic reaches each edge (it is on opposite sides at the ends): Newton from
-    // the inverse cubic's guess, kept inside the bracket by bisection ([`Crossing`]). The
-    // guess is most often within 10^-9 counts already (Newton is then only checked), so the
-    // edges are solved one after the other: solving four side by side, which paid while
-    // Newton started on the straight line, now costs more than it overlaps.
+    // the inverse quintic's guess, kept inside the bracket by bisection ([`Crossing`]). The
+    // guess is nearly always within 10^-9 counts already (Newton is then only checked), so
+    // the edges are solved one after the other: solving four side by side, which paid while
+    // Newton started on the straight line, costs more than it overlaps.
     let guess = InverseGuess::new((a, b), (v0, v1));
     let rising = b > a;
     let (lo, hi) = (
@@ -75,18 +75,22 @@ impl Cubic {
     }
 }
 
-/// Where Newton starts for an edge: on the inverse cubic (the step's fraction as a cubic in
-/// the position, through the ends with slopes 1/v0 and 1/v1) when both ends move the way the
-/// step goes, which lands within a hair of the crossing and leaves Newton one step; else on
-/// the straight line (a wheel starting from rest or turning back inside the step).
+/// Where Newton starts for an edge: on the inverse quintic (the step's fraction as a quintic
+/// in the position, through the ends with the inverse's slopes and curvatures there) when
+/// both ends move the way the step goes; else on the straight line (a wheel starting from
+/// rest or turning back inside the step). The inverse cubic (slopes only) was within Newton's
+/// 10⁻⁹ counts for six edges in ten of the default scenario, and the rest each took a Newton
+/// step, a division, on a branch no predictor could learn; the quintic, for all but 449 of
+/// its 268 274 edges: 3 % fewer instructions in the whole emulation, and 1.05× faster
+/// (`emulate --json`, medians of 21 runs in turn: 836× → 874×, 833× → 878×).
 #[derive(Clone, Copy, Debug)]
 struct InverseGuess {
     a: f64,
     /// 1 / (b - a): the edge's fraction of the way from `a` to `b`.
     per_count: f64,
-    /// The inverse cubic's monomial coefficients of s, s² and s³ (s the fraction of the
-    /// way), or the straight line's.
-    c: [f64; 3],
+    /// The inverse quintic's monomial coefficients of s to s⁵ (s the fraction of the way),
+    /// or the straight line's.
+    c: [f64; 5],
 }
 
 impl InverseGuess {
@@ -97,10 +101,23 @@ impl InverseGuess {
         // Beyond these the cubic is far from monotone in u, its inverse no help.
         let fits = |m: f64| m > 0.25 && m < 4.0;
         let c = if fits(m0) && fits(m1) {
-            // Hermite: u(0) = 0, u(1) = 1, u'(0) = m0, u'(1) = m1.
-            [m0, 3.0 - 2.0 * m0 - m1, m0 + m1 - 2.0]
+            // The position's second derivative at the ends (counts per step²), of the
+            // Hermite cubic through (a, v0) and (b, v1); the inverse's is −p''·(du/dp)³ in
+            // the way's fraction: −p''/d · m³.
+            let c2 = 3.0 * d - 2.0 * v0 - v1;
+            let c3 = v0 + v1 - 2.0 * d;
+            let (p0, p1) = (2.0 * c2, 2.0 * c2 + 6.0 * c3);
+            let (k0, k1) = (-p0 / d * m0 * m0 * m0, -p1 / d * m1 * m1 * m1);
+            // Quintic Hermite: u(0) = 0, u(1) = 1, u' = m0, m1 and u'' = k0, k1.
+            [
+                m0,
+                0.5 * k0,
+                10.0 - 6.0 * m0 - 4.0 * m1 - 1.5 * k0 + 0.5 * k1,
+                -15.0 + 8.0 * m0 + 7.0 * m1 + 1.5 * k0 - k1,
+                6.0 - 3.0 * m0 - 3.0 * m1 - 0.5 * k0 + 0.5 * k1,
+            ]
         } else {
-            [1.0, 0.0, 0.0]
+            [1.0, 0.0, 0.0, 0.0, 0.0]
         };
         InverseGuess {
             a,
@@ -112,8 +129,8 @@ impl InverseGuess {
     #[inline(always)]
     fn at(&self, edge: f64) -> f64 {
         let s = (edge - self.a) * self.per_count;
-        let [c1, c2, c3] = self.c;
-        (((c3 * s + c2) * s + c1) * s).clamp(0.0, 1.0)
+        let [c1, c2, c3, c4, c5] = self.c;
+        (((((c5 * s + c4) * s + c3) * s + c2) * s + c1) * s).clamp(0.0, 1.0)
     }
 }
 
@@ -196,6 +213,43 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        /// In a step of a wheel in smooth motion (its speed changing steadily through the
+        /// step, by up to a fifth of the step's mean, give or take a little jerk), the
+        /// inverse quintic lands far closer to each crossing than the inverse cubic it
+        /// replaced, and cruising (speed changes of a thousandth a step, as the robot's
+        /// wheels make at speed) within the 10⁻⁹ count Newton stops at: no Newton step (a
+        /// division) to take. In the default scenario the cubic was that close for six edges
+        /// in ten, the quintic for all but 449 of its 268 274.
+        #[test]
+        fn in_smooth_motion_the_guess_is_the_crossing(
+            a in -1.0e5f64..1.0e5,
+            d in prop_oneof![1.0f64..40.0, -40.0f64..-1.0],
+            accel in -0.1f64..0.1,
+            jerk in -1e-3f64..1e-3,
+            cruise in 0.0f64..1e-3,
+        ) {
+            let off = |accel: f64, jerk: f64| {
+                let (b, v0, v1) = (a + d, d * (1.0 - accel + jerk), d * (1.0 + accel + jerk));
+                let cubic = Cubic::hermite((a, b), (v0, v1));
+                let guess = InverseGuess::new((a, b), (v0, v1));
+                // The inverse cubic: u(0) = 0, u(1) = 1, u' = d/v0 and d/v1.
+                let (m0, m1) = (d / v0, d / v1);
+                let c = [m0, 3.0 - 2.0 * m0 - m1, m0 + m1 - 2.0];
+                let (lo, hi) = (a.min(b).floor() as i64, a.max(b).floor() as i64);
+                (lo + 1..=hi).fold((0.0f64, 0.0f64), |(q, k), edge| {
+                    let e = edge as f64;
+                    let s = (e - a) / d;
+                    let u3 = (((c[2] * s + c[1]) * s + c[0]) * s).clamp(0.0, 1.0);
+                    let (q5, q3) = ((cubic.position(guess.at(e)) - e).abs(), (cubic.position(u3) - e).abs());
+                    (q.max(q5), k.max(q3))
+                })
+            };
+            let (quintic, cubic) = off(accel, jerk);
+            prop_assert!(quintic <= 1e-9 || quintic * 10.0 < cubic, "{quintic:e} vs {cubic:e}");
+            let (cruising, _) = off(cruise, cruise * cruise);
+            prop_assert!(cruising < 1e-9, "{cruising:e} counts off");
+        }
+
         /// Every whole count between the ends is pushed once, at an instant inside the step
         /// where the cubic is on it (to 10^-9 counts), whatever the speeds: near the straight
         /// line's, from rest, or drawn at random (braking, or turning back inside the step).
