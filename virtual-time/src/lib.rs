@@ -210,7 +210,14 @@ impl<'a> Simulation<'a> {
                 _ => break,
             }
         }
-        self.set_clock(until.as_ticks().max(Instant::now().as_ticks()));
+        // Most often the last deadline was `until` itself (an emulation's physics grid is
+        // every firmware timer's): the clock is there already and nothing left in the queue is
+        // due by then (the loop above took every deadline up to it), so setting it again would
+        // only walk the queue (0.9 % of an emulation's instructions, about 1 % of its time).
+        let until = until.as_ticks().max(Instant::now().as_ticks());
+        if until != Instant::now().as_ticks() {
+            self.set_clock(until);
+        }
         self.run_until_idle();
     }
 
