@@ -1,10 +1,11 @@
 //! postcard's output written into a byte slice one byte at a time.
 //!
 //! postcard's own `to_slice` copies every varint (1 to 5 bytes) into the slice with
-//! `copy_from_slice` of a length known only at run time: a call to the C library's `memmove` on
-//! the host (4 % of an emulation, whose boards build and check two SPI frames a millisecond)
-//! and to `compiler_builtins`' `memcpy` on the boards. A byte at a time, each byte is one
-//! checked store.
+//! `copy_from_slice` of a length known only at run time: a call to the boards' `memcpy` for
+//! each. A byte at a time, each byte is one checked store: the slave builds its SPI frame in
+//! 183 fewer instructions (`scripts/m3-bench`), and the master's image is 164 B smaller. (On
+//! the host those calls were 4 % of an emulation's time in `memmove`; the byte stores take as
+//! long.)
 
 use postcard::ser_flavors::Flavor;
 use serde::Serialize;
@@ -58,7 +59,7 @@ mod tests {
     use crate::{Bytes, Pose};
 
     /// The same bytes as postcard's `to_slice`, and the same refusal of a buffer too short,
-    /// on both SPI frames and a serial message with a byte string.
+    /// on both SPI frames and on varints of every width beside a byte string.
     #[test]
     fn writes_what_postcards_to_slice_writes() {
         fn same<T: Serialize>(value: &T) {
