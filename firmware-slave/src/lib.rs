@@ -51,8 +51,16 @@ pub enum SensorMode {
 /// How the slave's sensors are built and how often it integrates.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SlaveConfig {
-    /// The sensors' geometry and the integer constants (robot-math's one layout type).
-    pub layout: Layout,
+    /// The robot the slave powers on with: its sensors' geometry and integer constants
+    /// (robot-math's one layout type). Private, so that it always comes with its fingerprint.
+    layout: Layout,
+    /// `layout`'s fingerprint (`robot_wire::layout_fingerprint`), what the frames report
+    /// until another robot is uploaded. The configuration carries it rather than the slave
+    /// working it out at start: the board's robot's is a constant
+    /// ([`SlaveConfig::SEED_004_FINGERPRINT`]), and the code that works one out (632 B) stays
+    /// out of the image. The emulator's other robots have theirs worked out on the host
+    /// ([`SlaveConfig::with_layout`]); the firmware reads it the same way in both.
+    power_on_fingerprint: u32,
     pub sensor: SensorMode,
     /// Odometry update period (fixed rate).
     pub update_period_us: u32,
@@ -65,9 +73,45 @@ impl SlaveConfig {
     /// the two), 1 kHz updates.
     pub const DEFAULT: SlaveConfig = SlaveConfig {
         layout: Layout::SEED_004,
+        power_on_fingerprint: Self::SEED_004_FINGERPRINT,
         sensor: SensorMode::TickTimestamps,
         update_period_us: 1_000_000 / board_rate::DEFAULT_RATE_HZ,
     };
+
+    /// [`Layout::SEED_004`]'s fingerprint, as a constant: the test
+    /// `the_default_robots_fingerprint_is_its_layouts` proves it equal to the one worked out
+    /// from the layout, and fails (saying the new value) when the layout or the fingerprint's
+    /// form changes.
+    pub const SEED_004_FINGERPRINT: u32 = 0xe4f6_f88a;
+
+    /// This configuration with `layout` as the robot the slave powers on with (the emulator's
+    /// virtual boards), its fingerprint worked out here.
+    pub fn with_layout(self, layout: Layout) -> SlaveConfig {
+        SlaveConfig {
+            layout,
+            power_on_fingerprint: robot_wire::layout_fingerprint(&layout),
+            ..self
+        }
+    }
+
+    /// This configuration at another update period (the board's image: the rate it was
+    /// built for).
+    pub const fn with_update_period_us(self, update_period_us: u32) -> SlaveConfig {
+        SlaveConfig {
+            update_period_us,
+            ..self
+        }
+    }
+
+    /// The robot the slave powers on with.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// [`layout`](Self::layout)'s fingerprint.
+    pub fn power_on_fingerprint(&self) -> u32 {
+        self.power_on_fingerprint
+    }
 
     /// The absolute encoder position (`0..2^bits`) the pins stand for (0 without one).
     pub fn abs_code(&self, levels: u8) -> u16 {
@@ -149,22 +193,60 @@ mod tests {
             let levels = !(binary_to_gray(code) as u8);
             assert_eq!(cfg.abs_code(levels), code);
         }
-        let mut plain = cfg.clone();
         let abs = robot_math::odometry::AbsLayout {
             inverted: false,
             ..robot_math::odometry::AbsLayout::E6CP_AG5C
         };
         let layout = &cfg.layout;
-        plain.layout = Layout::from_parts(
+        let plain = cfg.clone().with_layout(
+            Layout::from_parts(
+                2,
+                *layout.wheels(),
+                *layout.metres_per_count(),
+                *layout.exact(),
+                layout.carriage(),
+                Some(abs),
+            )
+            .unwrap(),
+        );
+        assert_eq!(plain.abs_code(binary_to_gray(77) as u8), 77);
+    }
+
+    #[test]
+    fn the_default_robots_fingerprint_is_its_layouts() {
+        let worked_out = robot_wire::layout_fingerprint(&Layout::SEED_004);
+        assert_eq!(
+            SlaveConfig::DEFAULT.power_on_fingerprint(),
+            worked_out,
+            "SEED_004_FINGERPRINT is now {worked_out:#010x}"
+        );
+        // Another robot's (seed 004's with its absolute encoder active-high) is worked out
+        // with it; the default's again, the same.
+        let l = Layout::SEED_004;
+        let abs = robot_math::odometry::AbsLayout {
+            inverted: false,
+            ..robot_math::odometry::AbsLayout::E6CP_AG5C
+        };
+        let other = Layout::from_parts(
             2,
-            *layout.wheels(),
-            *layout.metres_per_count(),
-            *layout.exact(),
-            layout.carriage(),
+            *l.wheels(),
+            *l.metres_per_count(),
+            *l.exact(),
+            l.carriage(),
             Some(abs),
         )
         .unwrap();
-        assert_eq!(plain.abs_code(binary_to_gray(77) as u8), 77);
+        let config = SlaveConfig::DEFAULT.with_layout(other);
+        assert_eq!(config.layout(), &other);
+        assert_eq!(
+            config.power_on_fingerprint(),
+            robot_wire::layout_fingerprint(&other)
+        );
+        assert_ne!(config.power_on_fingerprint(), worked_out);
+        assert_eq!(
+            SlaveConfig::DEFAULT.with_layout(Layout::SEED_004),
+            SlaveConfig::DEFAULT
+        );
     }
 
     #[test]

@@ -20,10 +20,8 @@ mod firmware {
     /// encoder edge time-stamped (EXTI, `board/exti.rs`) with the timers cross-checking, and
     /// the update rate the image was built for (1 kHz unless `OMNIBENCH_SLAVE_RATE_HZ` says
     /// otherwise; the emulator's `--slave-rate` matches it).
-    static CONFIG: SlaveConfig = SlaveConfig {
-        update_period_us: board_period::BOARD_PERIOD_US,
-        ..SlaveConfig::DEFAULT
-    };
+    static CONFIG: SlaveConfig =
+        SlaveConfig::DEFAULT.with_update_period_us(board_period::BOARD_PERIOD_US);
 
     /// The update period the image was built for (`OMNIBENCH_SLAVE_RATE_HZ`, checked by
     /// `build.rs`; 1 kHz when unset).

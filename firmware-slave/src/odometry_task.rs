@@ -16,7 +16,7 @@ use robot_math::sensors::CounterExtender;
 use crate::played::{PlayKind, PlayedSensors, ReportSink};
 use crate::ports::{AbsoluteEncoderPins, EncoderEdges, QuadratureCounters, MEASURING_WHEELS};
 use crate::recorder::{RecordSink, Recorder};
-use crate::robot_wire::{layout_fingerprint, Upload};
+use crate::robot_wire::Upload;
 use crate::{method_of, SensorMode, SlaveConfig, SlaveEstimator, SlaveShared};
 
 /// Report bytes staged per pass before they go to the shared stream.
@@ -112,8 +112,8 @@ pub async fn odometry_task(
         (counters.read_raw(), edges.levels())
     };
     let mut extenders = raw.map(CounterExtender::new);
-    let mut layout: Layout = config.layout;
-    let mut robot = layout_fingerprint(&layout);
+    let mut layout: Layout = *config.layout();
+    let mut robot = config.power_on_fingerprint();
     let mut source = match config.sensor {
         SensorMode::Counts => SensorSource::Counts,
         SensorMode::TickTimestamps => SensorSource::Ticks,

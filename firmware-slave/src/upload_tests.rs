@@ -96,7 +96,7 @@ fn an_upload_is_installed_whole_or_refused_keeping_the_robot_that_ran() {
     });
     sim.run_for(Duration::from_millis(3));
     let rejected = |shared: &SlaveShared| shared.frame().status & slave_status::ROBOT_REJECTED != 0;
-    let power_on = layout_fingerprint(&config.layout);
+    let power_on = layout_fingerprint(config.layout());
     assert_eq!(shared.frame().robot, power_on);
     assert!(!rejected(&shared));
 
@@ -123,7 +123,7 @@ fn an_upload_is_installed_whole_or_refused_keeping_the_robot_that_ran() {
     assert_eq!(shared.frame().robot, layout_fingerprint(&other));
 
     // A part lost (the commit finds encoder 1's wheel missing): refused, `other` keeps running.
-    master.upload(&mut sim, &config.layout, |c| match c {
+    master.upload(&mut sim, config.layout(), |c| match c {
         SlaveCommand::RobotWheel(w) if w.index == 1 => None,
         c => Some(c),
     });
@@ -131,7 +131,7 @@ fn an_upload_is_installed_whole_or_refused_keeping_the_robot_that_ran() {
     assert_eq!(shared.frame().robot, layout_fingerprint(&other));
 
     // And the power-on robot again, whole.
-    master.upload(&mut sim, &config.layout, Some);
+    master.upload(&mut sim, config.layout(), Some);
     assert!(!rejected(&shared));
     assert_eq!(shared.frame().robot, power_on);
     drop(sim);

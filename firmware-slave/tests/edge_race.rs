@@ -99,7 +99,7 @@ impl EncoderEdges for Edges {
 /// wheel base per count (exact interpolates to the update instant: not always a whole count).
 fn counts_in_pose(config: &SlaveConfig, heading_rad: f64) -> f64 {
     let geometry = config
-        .layout
+        .layout()
         .carriage_geometry()
         .expect("the board runs seed 004's carriage");
     -heading_rad * geometry.wheel_base / geometry.metres_per_count[0]

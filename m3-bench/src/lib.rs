@@ -97,12 +97,12 @@ pub fn run(meter: &mut dyn Meter) {
     let edges = [Case::ExactEdgePlacing, Case::ExactEdge];
     run_layout(
         meter,
-        &seed004.layout,
+        seed004.layout(),
         abs_levels,
         edges,
         Case::ExactTicksUpdate,
     );
-    counts_updates(meter, &seed004.layout, abs_levels, Case::ExactCountsUpdate);
+    counts_updates(meter, seed004.layout(), abs_levels, Case::ExactCountsUpdate);
     let omni = omni3();
     run_layout(
         meter,

@@ -26,7 +26,7 @@ fn run_default(seed: u64, tweak: impl FnOnce(&mut Options)) -> Run {
 /// the truth) minus the swivel angle (from the absolute encoder, within half a step).
 fn heading_bound() -> f64 {
     let g = firmware_slave::SlaveConfig::DEFAULT
-        .layout
+        .layout()
         .carriage_geometry()
         .expect("the board's layout is seed 004's carriage");
     let count = g.metres_per_count[0].max(g.metres_per_count[1]);

@@ -109,7 +109,7 @@ fn every_scenario_file_runs_and_ends_holding_still() {
         // One slave image for every robot: the host uploads the file's encoders over the
         // protocol unless the slave powered on with them (seed 004's carriage).
         let fp = firmware_slave::robot_wire::layout_fingerprint;
-        let power_on = fp(&firmware_slave::SlaveConfig::DEFAULT.layout);
+        let power_on = fp(firmware_slave::SlaveConfig::DEFAULT.layout());
         let expected = (fp(&s.layout) != power_on).then(|| fp(&s.layout));
         assert_eq!(r.robot_uploaded, expected, "{}", s.name);
         if let Motion::Track { .. } = s.motion {

@@ -437,7 +437,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         opts.faults.schema = Some(fp);
     }
     // Refuse a robot the board cannot simulate before printing a port.
-    host_bench::sim::plant::MeasuringSensors::from_layout(&opts.slave.layout).map_err(|e| {
+    host_bench::sim::plant::MeasuringSensors::from_layout(opts.slave.layout()).map_err(|e| {
         anyhow::anyhow!(
             "{}: the virtual board cannot simulate robot {robot_name}: {e}",
             a.robot

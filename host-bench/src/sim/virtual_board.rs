@@ -11,7 +11,7 @@
 //! has something to record. Only a simulated board can send the truth; it does, as
 //! [`MasterToHost::SimTruth`] frames between the master's own.
 //!
-//! The robot is the slave's layout (`Options::slave.layout`): seed 004's carriage by default,
+//! The robot is the slave's layout (`Options::slave.layout()`): seed 004's carriage by default,
 //! as a freshly flashed slave; or a robot file's two encoders, as a slave that was sent that
 //! robot. A robot whose measuring wheels share an axle is driven like a differential drive
 //! (its axle never slides sideways), so its encoders see what real ones would.
@@ -81,10 +81,7 @@ impl Options {
         let course_speed = course_speed_for(&layout);
         Options {
             seed: 1,
-            slave: SlaveConfig {
-                layout,
-                ..SlaveConfig::DEFAULT
-            },
+            slave: SlaveConfig::DEFAULT.with_layout(layout),
             master: MasterConfig::DEFAULT,
             faults: Faults::default(),
             course_side: 1.0,
@@ -227,7 +224,7 @@ pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
 pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     let drive = omni_drive(&opts.master)?;
-    let sensors = MeasuringSensors::from_layout(&opts.slave.layout)
+    let sensors = MeasuringSensors::from_layout(opts.slave.layout())
         .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
     let plant_cfg = PlantConfig {
         drive: DriveKinematics::Omni3(drive),

@@ -179,7 +179,7 @@ pub fn run_logged(
     // One slave image serves every robot: the host uploads this run's, unless the slave
     // powered on with it.
     let fingerprint = firmware_slave::robot_wire::layout_fingerprint;
-    let upload = (fingerprint(&opts.robot_layout) != fingerprint(&opts.slave.layout))
+    let upload = (fingerprint(&opts.robot_layout) != fingerprint(opts.slave.layout()))
         .then_some(opts.robot_layout);
     let drive = DriveSetup::from_geometry(&scenario.drive)
         .context("the scenario's drive geometry is impossible")?;
