@@ -213,19 +213,20 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
-        /// In a step of a wheel in smooth motion (its speed changing steadily through the
-        /// step, by up to a fifth of the step's mean, give or take a little jerk), the
-        /// inverse quintic lands far closer to each crossing than the inverse cubic it
-        /// replaced, and cruising (speed changes of a thousandth a step, as the robot's
-        /// wheels make at speed) within the 10⁻⁹ count Newton stops at: no Newton step (a
-        /// division) to take. In the default scenario the cubic was that close for six edges
-        /// in ten, the quintic for all but 449 of its 268 274.
+        /// In a step of a wheel in smooth motion the inverse quintic lands far closer to each
+        /// crossing than the inverse cubic it replaced: ten times at least under a constant
+        /// acceleration of up to a fifth of the step's mean speed across the step, and within
+        /// the 10⁻⁹ count Newton stops at (no Newton step, a division, to take) while
+        /// cruising, the speed changing by a thousandth a step with a little jerk, as the
+        /// robot's wheels do at speed. In the default scenario the cubic was that close for
+        /// six edges in ten, the quintic for all but 449 of its 268 274. (With jerk and a
+        /// large acceleration together the quintic is not always the closer: checked over
+        /// 10⁶ cases each, the two properties here held and that one did not.)
         #[test]
         fn in_smooth_motion_the_guess_is_the_crossing(
             a in -1.0e5f64..1.0e5,
             d in prop_oneof![1.0f64..40.0, -40.0f64..-1.0],
             accel in -0.1f64..0.1,
-            jerk in -1e-3f64..1e-3,
             cruise in 0.0f64..1e-3,
         ) {
             let off = |accel: f64, jerk: f64| {
@@ -244,8 +245,8 @@ mod tests {
                     (q.max(q5), k.max(q3))
                 })
             };
-            let (quintic, cubic) = off(accel, jerk);
-            prop_assert!(quintic <= 1e-9 || quintic * 10.0 < cubic, "{quintic:e} vs {cubic:e}");
+            let (quintic, cubic) = off(accel, 0.0);
+            prop_assert!(quintic <= 1e-9 || quintic * 10.0 <= cubic, "{quintic:e} vs {cubic:e}");
             let (cruising, _) = off(cruise, cruise * cruise);
             prop_assert!(cruising < 1e-9, "{cruising:e} counts off");
         }
