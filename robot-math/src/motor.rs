@@ -128,19 +128,42 @@ impl DcMotor {
         duty: f64,
         decays: [f64; N],
     ) -> [f64; N] {
-        let r = self.wheel_radius_m;
+        self.driven_speeds_after_decays(v0, &self.held(duty), decays)
+    }
+
+    /// What a duty makes of this motor while it is held: its drive torque and the steady
+    /// speeds either way, worked out once. A plant that steps many times at one duty pays
+    /// for the divisions in them once (three a wheel and step otherwise).
+    pub fn held(&self, duty: f64) -> HeldDuty {
         let drive = self.drive_torque(duty);
+        let damping = self.damping();
+        // The friction opposes the motion (or at rest the drive): ±coulomb, each exact.
+        HeldDuty {
+            drive,
+            steady_w: [
+                (drive - self.coulomb_nm) / damping,
+                (drive + self.coulomb_nm) / damping,
+            ],
+        }
+    }
+
+    /// [`speeds_after_decays`](Self::speeds_after_decays) at a duty [`held`](Self::held):
+    /// the same arithmetic, so the same speeds to the bit.
+    pub fn driven_speeds_after_decays<const N: usize>(
+        &self,
+        v0: f64,
+        held: &HeldDuty,
+        decays: [f64; N],
+    ) -> [f64; N] {
+        let r = self.wheel_radius_m;
+        let drive = held.drive;
         let w0 = v0 / r;
         // The sign the friction opposes: the motion, or at rest the drive.
-        let moving = if w0 != 0.0 {
-            w0.signum()
-        } else {
-            drive.signum()
-        };
+        let forward = if w0 != 0.0 { w0 > 0.0 } else { drive >= 0.0 };
         if w0 == 0.0 && libm::fabs(drive) <= self.coulomb_nm {
             return [0.0; N]; // stiction holds it
         }
-        let w_ss = (drive - self.coulomb_nm * moving) / self.damping();
+        let w_ss = held.steady_w[usize::from(!forward)];
         decays.map(|decay| {
             let w = w_ss + (w0 - w_ss) * decay;
             // Friction cannot reverse a wheel: crossing zero, it stops (until the next step,
@@ -154,11 +177,48 @@ impl DcMotor {
     }
 }
 
+/// A duty as a [`DcMotor`] holds it ([`DcMotor::held`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldDuty {
+    drive: f64,
+    /// The steady shaft speed (rad/s) moving forward, and backward.
+    steady_w: [f64; 2],
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     const M: DcMotor = DcMotor::SEED_004;
+
+    proptest::proptest! {
+        /// A held duty gives the speeds the friction's sign worked out as `signum` of the
+        /// motion (or at rest of the drive) gives, to the bit: from rest, either way, across
+        /// the dead band and the stiction, and for a motor without friction.
+        #[test]
+        fn a_held_duty_moves_the_wheel_as_the_duty_itself(
+            v0 in proptest::prop_oneof![proptest::strategy::Just(0.0), -3.0f64..3.0],
+            duty in -1.2f64..1.2,
+            decay in 0.0f64..1.0,
+            frictionless in proptest::bool::ANY,
+        ) {
+            let m = if frictionless { M.frictionless() } else { M };
+            let by_signum = {
+                let (r, drive) = (m.wheel_radius_m, m.drive_torque(duty));
+                let w0 = v0 / r;
+                let moving = if w0 != 0.0 { w0.signum() } else { drive.signum() };
+                if w0 == 0.0 && libm::fabs(drive) <= m.coulomb_nm {
+                    0.0
+                } else {
+                    let w_ss = (drive - m.coulomb_nm * moving) / m.damping();
+                    let w = w_ss + (w0 - w_ss) * decay;
+                    if w0 != 0.0 && w * w0 < 0.0 { 0.0 } else { w * r }
+                }
+            };
+            let held = m.driven_speeds_after_decays(v0, &m.held(duty), [decay])[0];
+            proptest::prop_assert_eq!(held.to_bits(), by_signum.to_bits());
+        }
+    }
 
     #[test]
     fn settles_on_its_steady_speed_and_inside_the_dead_band_does_nothing() {

@@ -13,7 +13,7 @@ mod edges;
 
 use robot_math::carriage::CarriageGeometry;
 use robot_math::drive::DriveKinematics;
-use robot_math::motor::DcMotor;
+use robot_math::motor::{DcMotor, HeldDuty};
 use robot_math::odometry::{AbsLayout, Layout};
 use robot_math::se2::wrap_angle;
 use robot_math::sensors::binary_to_gray;
@@ -146,6 +146,9 @@ pub struct Plant {
     /// The motors' decay over the last step length and its half, `(h, half, full)`: the steps
     /// are all the same length, so the exponentials are paid for once.
     decay: (f64, f64, f64),
+    /// The motors at their duties (changed by [`set_duty`](Self::set_duty) only): their drive
+    /// and steady speeds, worked out when a duty is set rather than every step.
+    held: [HeldDuty; 3],
     /// The measuring encoders' travel per count and their power-on phase's whole counts:
     /// constants of every position, taken out of the per-step path.
     per_count: [f64; 2],
@@ -231,6 +234,7 @@ impl Plant {
             path_length: 0.0,
             edges: Vec::new(),
             decay: (f64::NAN, 0.0, 0.0),
+            held: held_duties(&cfg.motor, [0; 3]),
             per_count,
             phase_floor,
             positions: encoder_positions(per_count, encoder_phase, phase_floor, &state),
@@ -258,6 +262,7 @@ impl Plant {
             self.switch_ons += 1;
         }
         self.duty = duty;
+        self.held = held_duties(&self.cfg.motor, duty);
     }
 
     /// Times the motors went from standing (every duty zero) to driven since the start: what
@@ -356,7 +361,6 @@ impl Plant {
     }
 
     fn step(&mut self, h: f64) {
-        let duty = self.duty.map(|d| d as f64 / 1000.0);
         let w0 = self.wheel_speed;
         let motor = self.cfg.motor;
         if self.decay.0 != h {
@@ -365,7 +369,11 @@ impl Plant {
         // The motors' exact response inside the step (the duty is held through it), at the
         // three instants RK4 looks at.
         let speeds: [[f64; 3]; 3] = core::array::from_fn(|i| {
-            motor.speeds_after_decays(w0[i], duty[i], [1.0, self.decay.1, self.decay.2])
+            motor.driven_speeds_after_decays(
+                w0[i],
+                &self.held[i],
+                [1.0, self.decay.1, self.decay.2],
+            )
         });
         let (start, half, end) = (
             speeds.map(|s| s[0]),
@@ -434,6 +442,11 @@ impl Plant {
         self.wheel_speed = end;
         self.t += h;
     }
+}
+
+/// The motors at `duty` (‰ of the supply).
+fn held_duties(motor: &DcMotor, duty: [i16; 3]) -> [HeldDuty; 3] {
+    duty.map(|d| motor.held(d as f64 / 1000.0))
 }
 
 /// Each encoder's position in counts (fractional), relative to its power-on count.
