@@ -42,7 +42,7 @@ impl Staged {
         if self.len + Report::POSTCARD_MAX_SIZE > self.limit {
             return false;
         }
-        match postcard::to_slice(r, &mut self.buf[self.len..self.limit]) {
+        match protocol::to_slice(r, &mut self.buf[self.len..self.limit]) {
             Ok(b) => {
                 self.len += b.len();
                 true

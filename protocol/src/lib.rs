@@ -27,6 +27,8 @@ pub mod serial;
 pub mod spi;
 mod units;
 mod writer;
+/// `postcard::to_slice`'s bytes and errors, written a byte at a time (see `writer`).
+pub use writer::to_slice;
 
 pub use bytes::Bytes;
 pub use units::{metres_to_um, BinaryAngle, Point, Pose};
