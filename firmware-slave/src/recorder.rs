@@ -21,6 +21,8 @@ pub struct Recorder {
     encoder: EventEncoder,
     staged: [u8; REPORT_SENSOR_BYTES],
     len: usize,
+    /// Events in `staged`.
+    staged_events: u32,
     /// Events and updates dropped since the last `Lost` record went out.
     lost_events: u32,
     lost_updates: u32,
@@ -42,6 +44,7 @@ impl Recorder {
             encoder: EventEncoder::new(),
             staged: [0; REPORT_SENSOR_BYTES],
             len: 0,
+            staged_events: 0,
             lost_events: 0,
             lost_updates: 0,
             last_abs: None,
@@ -86,7 +89,10 @@ impl Recorder {
             self.flush(sink);
         }
         match self.encoder.encode(&e, &mut self.staged[self.len..]) {
-            Ok(n) => self.len += n,
+            Ok(n) => {
+                self.len += n;
+                self.staged_events += 1;
+            }
             // Out of order or out of range: not representable, counted as lost.
             Err(_) => self.lost_events = self.lost_events.saturating_add(1),
         }
@@ -121,19 +127,12 @@ impl Recorder {
         if !self.put(sink, &r) {
             // Dropped: count what it held, and restart the delta code from time 0 so the
             // next record decodes on its own after the `Lost` marker.
-            self.lost_events = self.lost_events.saturating_add(self.count_staged());
+            self.lost_events = self.lost_events.saturating_add(self.staged_events);
             self.encoder = EventEncoder::new();
             self.last_abs = None;
         }
         self.len = 0;
-    }
-
-    /// Events in the staged bytes (each event's first byte is a header; decode to count).
-    fn count_staged(&self) -> u32 {
-        let mut d = protocol::events::EventDecoder::new();
-        let mut n = 0u32;
-        d.feed(&self.staged[..self.len], |_| n += 1);
-        n
+        self.staged_events = 0;
     }
 
     /// Put a record, preceded by the `Lost` marker if anything was dropped before it.
@@ -150,5 +149,72 @@ impl Recorder {
             self.lost_updates = 0;
         }
         sink.put(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::events::EventDecoder;
+
+    /// The report stream: takes records while `open`.
+    struct Stream {
+        open: bool,
+        records: Vec<Report>,
+    }
+
+    impl RecordSink for Stream {
+        fn put(&mut self, r: &Report) -> bool {
+            if self.open {
+                self.records.push(*r);
+            }
+            self.open
+        }
+    }
+
+    /// Records dropped while the stream is full are counted event by event in the `Lost`
+    /// record that goes ahead of the next one, and the code restarts so that record decodes
+    /// on its own.
+    #[test]
+    fn dropped_records_are_counted_event_by_event() {
+        let mut rec = Recorder::new();
+        let mut stream = Stream {
+            open: false,
+            records: Vec::new(),
+        };
+        let mut t = 0;
+        // Enough ticks for several records, with time gaps of every size, and two codes.
+        for k in 0..40u64 {
+            t += 1 + k * k * 97;
+            let step = if k % 3 == 0 { -1 } else { 1 };
+            rec.tick(&mut stream, t, (k % 2) as u8, step);
+        }
+        rec.abs(&mut stream, t + 1, 6);
+        rec.update(&mut stream, t + 1, protocol::Pose::default(), 0);
+        assert!(stream.records.is_empty());
+
+        stream.open = true;
+        rec.tick(&mut stream, t + 10, 1, 1);
+        rec.update(&mut stream, t + 10, protocol::Pose::default(), 0);
+        let [lost, Report::Sensors(bytes)] = &stream.records[..] else {
+            panic!("{:?}", stream.records);
+        };
+        assert_eq!(
+            *lost,
+            Report::Lost {
+                events: 41,
+                updates: 0
+            }
+        );
+        let mut decoded = Vec::new();
+        EventDecoder::new().feed(bytes.as_slice(), |e| decoded.push(e));
+        assert_eq!(
+            decoded,
+            [Ok(Event::Tick {
+                t_us: t + 10,
+                encoder: 1,
+                step: Step::Forward
+            })]
+        );
     }
 }
