@@ -77,6 +77,10 @@ fn live_mode(source: SensorSource) -> SensorMode {
     }
 }
 
+// Called at two places and kept out of line: on the board the tasks are one function the
+// executor polls, and inlined there it cost more flash than a call (docs/performance.md,
+// "Images, eleventh round").
+#[inline(never)]
 fn wire_pose(p: FixedPose) -> protocol::Pose {
     let (x_um, y_um) = p.micrometres();
     protocol::Pose {

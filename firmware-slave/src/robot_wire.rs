@@ -110,6 +110,10 @@ impl Upload {
     }
 
     /// Check the parts against `header` and build the layout; the parts are cleared either way.
+    // Cold (an upload's end), and kept out of line: on the board the tasks are one function the
+    // executor polls, and inlined there this cost 388 B more flash than a call
+    // (docs/performance.md, "Images, eleventh round").
+    #[inline(never)]
     pub fn commit(&mut self, header: &RobotHeader) -> Result<Layout, UploadError> {
         let parts = core::mem::take(self);
         let n = (header.encoders as usize).min(MAX_ENCODERS);

@@ -175,6 +175,10 @@ impl SlaveShared {
     }
 
     /// Append report bytes (the caller checked the room; what does not fit is dropped).
+    // Kept out of line: on the board the tasks are one function the executor polls, and
+    // inlined there it cost more flash than a call (docs/performance.md, "Images, eleventh
+    // round").
+    #[inline(never)]
     pub(crate) fn push_reports(&self, bytes: &[u8]) -> usize {
         self.with(|s| s.reports.push(bytes))
     }
@@ -220,6 +224,10 @@ impl SlaveShared {
         });
     }
 
+    // Kept out of line: on the board the tasks are one function the executor polls, and
+    // inlined there it cost more flash than a call (docs/performance.md, "Images, eleventh
+    // round").
+    #[inline(never)]
     pub(crate) fn take_command(&self) -> Option<(u8, SlaveCommand)> {
         self.with(|s| s.pending.take())
     }
