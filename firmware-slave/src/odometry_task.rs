@@ -278,10 +278,10 @@ pub async fn odometry_task(
                     if let Some((start, method)) = r.start {
                         for_estimator = Some(SlaveCommand::SetPose(start));
                         // Keep the method the host chose (refused: flagged, as a switch is).
-                        // Only an image with the float baselines can be running another: the
+                        // Only a build with the float methods can be running another: the
                         // default image refuses every switch away from `exact`, and leaves this
                         // out (216 B of its flash).
-                        if cfg!(feature = "baselines")
+                        if robot_math::odometry::FLOAT_METHODS
                             && method != robot_math::odometry::Method::Exact
                         {
                             let _ = estimator.sample(

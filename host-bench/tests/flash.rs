@@ -357,7 +357,7 @@ fn the_real_images_carry_a_defmt_table_and_an_rtt_block() {
 fn a_dry_run_refuses_an_image_larger_than_the_chips_flash() {
     // The master's image planned for the 32 KiB STM32F103C6: probe-rs' plan must not fit, which
     // shows the dry run really lays the ELF out against the chip's memory map. (The slave's
-    // image fits 32 KiB since issue 11; the master's does not.)
+    // code and data fit 32 KiB of flash since issue 11; the master's do not.)
     let request = FlashRequest {
         boards: vec![Board::Master],
         master_elf: Some(firmware_image(Board::Master)),

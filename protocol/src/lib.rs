@@ -27,7 +27,7 @@ pub mod serial;
 pub mod spi;
 mod units;
 mod writer;
-/// `postcard::to_slice`'s bytes and errors, written a byte at a time (see `writer`).
+/// `postcard::to_slice`'s bytes and errors, without a `memcpy` call per varint.
 pub use writer::to_slice;
 
 pub use bytes::Bytes;

@@ -112,6 +112,10 @@ pub enum Unsupported {
     FloatMethodsNotBuilt,
 }
 
+/// Whether this build has the float methods (`arc`, `lut`, `timing`): without them an
+/// [`Odometry`] refuses every switch away from `exact`, so it can only be running `exact`.
+pub const FLOAT_METHODS: bool = cfg!(any(test, feature = "float-methods"));
+
 impl fmt::Display for Unsupported {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
