@@ -175,9 +175,7 @@ impl SlaveShared {
     }
 
     /// Append report bytes (the caller checked the room; what does not fit is dropped).
-    // Kept out of line: on the board the tasks are one function the executor polls, and
-    // inlined there it cost more flash than a call (docs/performance.md, "Images, eleventh
-    // round").
+    // Out of line for the image's size, as `odometry_task`'s `wire_pose`.
     #[inline(never)]
     pub(crate) fn push_reports(&self, bytes: &[u8]) -> usize {
         self.with(|s| s.reports.push(bytes))
@@ -224,9 +222,7 @@ impl SlaveShared {
         });
     }
 
-    // Kept out of line: on the board the tasks are one function the executor polls, and
-    // inlined there it cost more flash than a call (docs/performance.md, "Images, eleventh
-    // round").
+    // Out of line for the image's size, as `odometry_task`'s `wire_pose`.
     #[inline(never)]
     pub(crate) fn take_command(&self) -> Option<(u8, SlaveCommand)> {
         self.with(|s| s.pending.take())

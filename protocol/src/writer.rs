@@ -1,9 +1,8 @@
 //! postcard's output written into a byte slice one byte at a time.
 //!
 //! postcard's own `to_slice` copies every varint (1 to 5 bytes for a `u32`, up to 10 for a
-//! `u64`) into the slice with
-//! `copy_from_slice` of a length known only at run time: a call to the boards' `memcpy` for
-//! each. A byte at a time, each byte is one checked store: the slave builds its SPI frame in
+//! `u64`) into the slice with `copy_from_slice` of a length known only at run time: a call to
+//! the boards' `memcpy` for each. A byte at a time, each byte is one checked store: the slave builds its SPI frame in
 //! 183 fewer instructions (`scripts/m3-bench`), and the master's image is 164 B smaller. The
 //! slave's report records go through it too (88 B of its flash less than through postcard's
 //! `to_slice`, whose flavor was the image's only other). On the host the compiler turned the
