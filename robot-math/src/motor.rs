@@ -147,6 +147,13 @@ impl DcMotor {
         }
     }
 
+    /// Whether a wheel at rim speed `v0` stays at rest through a step at `held`: standing, with
+    /// a drive the stiction holds. [`driven_speeds_after_decays`](Self::driven_speeds_after_decays)
+    /// is then all zeros, whatever the decays.
+    pub fn held_still(&self, v0: f64, held: &HeldDuty) -> bool {
+        v0 / self.wheel_radius_m == 0.0 && libm::fabs(held.drive) <= self.coulomb_nm
+    }
+
     /// [`speeds_after_decays`](Self::speeds_after_decays) at a duty [`held`](Self::held):
     /// the same arithmetic, so the same speeds to the bit.
     pub fn driven_speeds_after_decays<const N: usize>(
@@ -160,8 +167,8 @@ impl DcMotor {
         let w0 = v0 / r;
         // The sign the friction opposes: the motion, or at rest the drive.
         let forward = if w0 != 0.0 { w0 > 0.0 } else { drive >= 0.0 };
-        if w0 == 0.0 && libm::fabs(drive) <= self.coulomb_nm {
-            return [0.0; N]; // stiction holds it
+        if self.held_still(v0, held) {
+            return [0.0; N];
         }
         let w_ss = held.steady_w[usize::from(!forward)];
         decays.map(|decay| {

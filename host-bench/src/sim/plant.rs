@@ -288,6 +288,15 @@ impl Plant {
     }
 
     fn step(&mut self, h: f64) {
+        if self.held_still() {
+            self.step_at_rest(h);
+        } else {
+            self.step_moving(h);
+        }
+    }
+
+    /// One RK4 step of `h` seconds.
+    fn step_moving(&mut self, h: f64) {
         let w0 = self.wheel_speed;
         let motor = self.cfg.motor;
         if self.decay.0 != h {
@@ -375,6 +384,30 @@ impl Plant {
         self.positions = p1;
         self.trig = trig_end;
         self.wheel_speed = end;
+        self.t += h;
+    }
+}
+
+impl Plant {
+    /// Whether every wheel stands and its motor's drive cannot overcome the stiction: then
+    /// nothing moves through a step (a robot parked between runs, or at the end of one).
+    fn held_still(&self) -> bool {
+        let motor = &self.cfg.motor;
+        (0..3).all(|i| motor.held_still(self.wheel_speed[i], &self.held[i]))
+    }
+
+    /// [`step`](Self::step) for a robot [`held_still`](Self::held_still): every derivative is
+    /// zero, so RK4 would hand back the state, the angles and the positions it started from,
+    /// with no edge and no path. Only the clock moves, and the angles are computed in full
+    /// when a moving step would compute them, so a robot setting off again steps exactly as
+    /// it would have. A parked robot's step was a fifth of an emulation's physics.
+    fn step_at_rest(&mut self, h: f64) {
+        self.full_trig_in -= 1;
+        if self.full_trig_in == 0 {
+            self.full_trig_in = FULL_TRIG_EVERY;
+            self.trig = Trig::of(&self.cfg, &self.state);
+        }
+        self.wheel_speed = [0.0; 3];
         self.t += h;
     }
 }
@@ -524,6 +557,52 @@ mod tests {
             }
         }
         assert!(worst < 2e-15, "{worst}");
+    }
+
+    #[test]
+    fn a_parked_robot_steps_exactly_as_the_integrator_would_step_it() {
+        // Parked (the motors' stiction holding the wheels), driven off, coasting to a stop
+        // against the friction, parked again and driven off again: the plant that skips the
+        // parked steps and one that integrates every step agree to the bit at every step,
+        // in the state, the angles, the positions, the edges and the path.
+        let cfg = PlantConfig {
+            motor: DcMotor::SEED_004,
+            ..cfg()
+        };
+        let start = Pose2::new(0.3, -0.2, 0.7);
+        let (mut fast, mut full) = (
+            Plant::new(cfg, start, 1.1, [0.3, 0.6]),
+            Plant::new(cfg, start, 1.1, [0.3, 0.6]),
+        );
+        let drive = duty_for(&fast, Twist::new(0.2, 0.1, 0.5));
+        let h = 1e-3;
+        let mut parked_steps = 0;
+        for k in 0..1500 {
+            let duty = match k {
+                0..100 | 600..1000 => drive,
+                _ => [0; 3],
+            };
+            fast.set_duty(duty);
+            full.set_duty(duty);
+            parked_steps += usize::from(fast.held_still());
+            fast.step(h);
+            full.step_moving(h);
+            assert_eq!(fast.state, full.state, "step {k}");
+            assert_eq!(
+                (fast.trig.theta, fast.trig.phi, fast.positions),
+                (full.trig.theta, full.trig.phi, full.positions),
+                "step {k}"
+            );
+            assert_eq!(fast.take_edges(), full.take_edges(), "step {k}");
+            assert_eq!(
+                (fast.wheel_speed, fast.path_length, fast.t),
+                (full.wheel_speed, full.path_length, full.t),
+                "step {k}"
+            );
+        }
+        // Parked before the start, and for hundreds of steps after each coast to a stop.
+        assert!(parked_steps > 400, "{parked_steps}");
+        assert!(full.path_length() > 0.05, "{}", full.path_length());
     }
 
     #[test]
