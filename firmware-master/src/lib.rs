@@ -26,6 +26,7 @@ use protocol::serial::DriveGeometry;
 use robot_math::pursuit::PursuitParams;
 
 use controller::Controller;
+use core::mem::MaybeUninit;
 pub use tasks::run;
 
 /// Robot geometry, rates and safety limits of the master.
@@ -120,7 +121,7 @@ impl MasterConfig {
 
 /// State shared by the master's tasks. `const`-constructible for a `static` on the board.
 pub struct MasterShared {
-    controller: Mutex<SharedLock, core::cell::RefCell<Option<Controller>>>,
+    controller: Mutex<SharedLock, core::cell::RefCell<ControllerCell>>,
     /// Replies for the host (hello, rejections), sent ahead of telemetry.
     replies: Channel<SharedLock, protocol::serial::MasterToHost, 4>,
 }
@@ -134,13 +135,40 @@ impl Default for MasterShared {
 impl MasterShared {
     pub const fn new() -> Self {
         MasterShared {
-            controller: Mutex::new(core::cell::RefCell::new(None)),
+            controller: Mutex::new(core::cell::RefCell::new(ControllerCell {
+                started: false,
+                controller: MaybeUninit::uninit(),
+            })),
             replies: Channel::new(),
         }
     }
 
     /// Run `f` on the controller (None before `run` has started it).
     pub fn with<R>(&self, f: impl FnOnce(&mut Controller) -> R) -> Option<R> {
-        self.controller.lock(|c| c.borrow_mut().as_mut().map(f))
+        self.controller.lock(|c| {
+            let mut cell = c.borrow_mut();
+            // SAFETY: `started` is set only once `Controller::init` has written the slot.
+            cell.started
+                .then(|| f(unsafe { cell.controller.assume_init_mut() }))
+        })
     }
+
+    /// Start the controller in place in its cell (it is kilobytes: never on the stack);
+    /// false, and none started, for a drive geometry it cannot run. Out of line: what it
+    /// builds is then on the stack only while it runs, not in the tasks' poll function.
+    #[inline(never)]
+    pub(crate) fn start(&self, config: &MasterConfig) -> bool {
+        self.controller.lock(|c| {
+            let mut cell = c.borrow_mut();
+            cell.started = false;
+            cell.started = Controller::init(&mut cell.controller, *config).is_some();
+            cell.started
+        })
+    }
+}
+
+/// Where the controller lives: built in place by [`MasterShared::start`].
+struct ControllerCell {
+    started: bool,
+    controller: MaybeUninit<Controller>,
 }

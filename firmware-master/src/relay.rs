@@ -9,6 +9,8 @@
 //! credit the host sees is the room in `events_in`; the slave's reports are taken only as far as
 //! `reports_out` has room (the rest it sends again). Sans-IO: the controller calls it.
 
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
 use protocol::chunks::{ChunkReceiver, ChunkSender};
 use protocol::link::{Ack, DataFrame, GbnReceiver, GbnSender, DEFAULT_TIMEOUT_US, MAX_CHUNK};
 use protocol::serial::MasterToHost;
@@ -42,10 +44,25 @@ impl Relay {
         }
     }
 
+    /// [`new`](Self::new), written in place into `slot` (the controller's static cell), a
+    /// field at a time: the relay is 1.7 KB, too much to build on the master's stack and copy.
+    pub fn init(slot: &mut MaybeUninit<Relay>) -> &mut Relay {
+        let r = slot.as_mut_ptr();
+        // SAFETY: every field written once through a raw pointer into the slot (the literal in
+        // `new` names them all); the slot is then initialised.
+        unsafe {
+            addr_of_mut!((*r).events_in).write(GbnReceiver::new());
+            addr_of_mut!((*r).events_out).write(ChunkSender::new());
+            addr_of_mut!((*r).reports_in).write(ChunkReceiver::new());
+            addr_of_mut!((*r).reports_out).write(GbnSender::new(DEFAULT_TIMEOUT_US));
+            slot.assume_init_mut()
+        }
+    }
+
     /// A new host session (hello): both serial streams restart at offset 0.
     pub fn reset_host(&mut self) {
-        self.events_in = GbnReceiver::new();
-        self.reports_out = GbnSender::new(DEFAULT_TIMEOUT_US);
+        self.events_in.reset();
+        self.reports_out.reset(DEFAULT_TIMEOUT_US);
     }
 
     /// The slave applied a new sensor source: both SPI streams restart at offset 0.

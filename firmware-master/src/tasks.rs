@@ -1,4 +1,4 @@
-//! The master's async tasks: thin loops between the ports and the [`Controller`].
+//! The master's async tasks: thin loops between the ports and the [`Controller`](crate::controller::Controller).
 
 use embassy_futures::join::join4;
 use embassy_futures::select::{select3, Either3};
@@ -7,7 +7,7 @@ use embedded_io_async::{Read, Write};
 use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
 use protocol::spi::{self, SlaveFrame, SPI_FRAME_LEN};
 
-use crate::controller::{Controller, Drive};
+use crate::controller::Drive;
 use crate::ports::{MotorDrivers, MotorEncoders, SlaveBus};
 use crate::{MasterConfig, MasterShared};
 
@@ -22,15 +22,12 @@ pub async fn run(
     config: &MasterConfig,
 ) -> ! {
     motors.stop();
-    let Some(controller) = Controller::new(*config) else {
+    if !shared.start(config) {
         // An impossible geometry is a build-time mistake; keep the motors off for good.
         loop {
             Timer::after_secs(3600).await;
         }
-    };
-    shared
-        .controller
-        .lock(|c| *c.borrow_mut() = Some(controller));
+    }
     join4(
         host_rx_task(serial_rx, shared),
         host_tx_task(serial_tx, shared, config),

@@ -7,6 +7,9 @@
 //! "unsupported algorithm" flag. The odometry task feeds it from the board's ports; any other
 //! sensor source (e.g. played-back events) can feed the same path.
 
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
+
 use protocol::spi::{slave_status, OdometryAlgorithm, SlaveCommand, ENCODER_SLOTS};
 use robot_math::exact::{FixedPose, MAX_ENCODERS};
 use robot_math::odometry::{Layout, Method, Odometry, SensorKind, Unsupported};
@@ -67,6 +70,9 @@ impl SlaveEstimator {
     /// `exact` at the origin at `t_ns`, the encoders at `counts`, their A/B channels at
     /// `edge_levels` (where edge decoding starts), the absolute encoder's pins at
     /// `abs_levels`. Uses floats once (the layout's float methods are not started).
+    ///
+    /// By value, for the host; the board builds its estimator in place
+    /// ([`init`](Self::init) and [`restart`](Self::restart)).
     pub fn new(
         layout: &Layout,
         sensor: SensorMode,
@@ -75,26 +81,65 @@ impl SlaveEstimator {
         edge_levels: &[u8],
         abs_levels: u16,
     ) -> Result<Self, Unsupported> {
+        let mut slot = MaybeUninit::uninit();
+        SlaveEstimator::init(&mut slot, layout).restart(
+            layout,
+            sensor,
+            t_ns,
+            counts,
+            edge_levels,
+            abs_levels,
+        )?;
+        // SAFETY: `init` wrote every field.
+        Ok(unsafe { slot.assume_init() })
+    }
+
+    /// Build an estimator in place in `slot` (the board's static cell): `exact` over `layout`
+    /// at rest, a start for [`restart`](Self::restart). Cannot fail.
+    pub fn init<'a>(slot: &'a mut MaybeUninit<Self>, layout: &Layout) -> &'a mut Self {
+        let e = slot.as_mut_ptr();
+        // SAFETY: every field written once through a raw pointer into the slot, the
+        // odometry in place by its own `init`; the slot is then initialised.
+        unsafe {
+            let odometry = &mut *(addr_of_mut!((*e).odometry) as *mut MaybeUninit<Odometry>);
+            Odometry::init(odometry, layout);
+            addr_of_mut!((*e).decoders).write([QuadratureDecoder::new(0); ENCODER_SLOTS]);
+            addr_of_mut!((*e).pending).write(0);
+            addr_of_mut!((*e).unsupported).write(false);
+            slot.assume_init_mut()
+        }
+    }
+
+    /// Start again in place, as [`new`](Self::new) would have started. On `Err` the
+    /// estimator runs `exact` over `layout` from the origin ([`Odometry::restart`]); `exact`
+    /// runs every layout [`Layout`]'s checks let through.
+    pub fn restart(
+        &mut self,
+        layout: &Layout,
+        sensor: SensorMode,
+        t_ns: u64,
+        counts: &[i64],
+        edge_levels: &[u8],
+        abs_levels: u16,
+    ) -> Result<(), Unsupported> {
         let kind = match sensor {
             SensorMode::Counts => SensorKind::Counts,
             SensorMode::TickTimestamps => SensorKind::Ticks,
         };
-        let odometry = Odometry::new(
+        for (j, d) in self.decoders.iter_mut().enumerate() {
+            *d = QuadratureDecoder::new(edge_levels.get(j).copied().unwrap_or(0));
+        }
+        self.pending = 0;
+        self.unsupported = false;
+        self.odometry.restart(
             layout,
             Method::Exact,
             kind,
             FixedPose::default(),
             t_ns,
-            slots(counts),
+            &slots(counts),
             Some(abs_levels),
-        )?;
-        let levels = slots(edge_levels);
-        Ok(SlaveEstimator {
-            odometry,
-            decoders: core::array::from_fn(|j| QuadratureDecoder::new(levels[j])),
-            pending: 0,
-            unsupported: false,
-        })
+        )
     }
 
     /// One recorded encoder edge (tick-timestamp mode), in time order; returns the count step

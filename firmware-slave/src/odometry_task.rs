@@ -6,6 +6,9 @@
 //! `PlayedCounts`) run through [`PlayedSensors`] in played time, as fast as they arrive. The
 //! robot can be replaced at run time (an upload of [`protocol::robot`] parts).
 
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
+
 use embassy_time::{Duration, Instant, Ticker};
 use postcard::experimental::max_size::MaxSize;
 use protocol::spi::{slave_status, Report, Reports, SensorSource, SlaveCommand, SlaveFrame};
@@ -90,13 +93,42 @@ fn wire_pose(p: FixedPose) -> protocol::Pose {
     }
 }
 
-/// How the estimator restarts after a command: in which mode, with a committed robot (its
-/// layout and fingerprint, installed only if the estimator takes it), from a source's start
-/// pose with the method that ran before.
-struct Restart {
-    mode: SensorMode,
-    robot: Option<(Layout, u32)>,
-    start: Option<(protocol::Pose, robot_math::odometry::Method)>,
+/// Everything the odometry task keeps from one update to the next: kilobytes (two
+/// estimators with their robot layouts), so it is built in place where the task keeps it
+/// (on the board the task's static cell, see [`odometry_task`]) and changed in place: a
+/// value this size built on a 20 KiB board's stack, or inlined into the task's poll function,
+/// is what once overflowed it.
+pub struct Odometer {
+    estimator: SlaveEstimator,
+    /// The played sensors, meaningful while `playing`.
+    played: PlayedSensors,
+    playing: bool,
+    recorder: Recorder,
+    upload: Upload,
+    /// The robot the estimator runs, and its fingerprint.
+    layout: Layout,
+    robot: u32,
+    /// A robot just committed, until the estimator takes it.
+    uploaded: Layout,
+    source: SensorSource,
+    reports: Reports,
+    sticky: u16,
+    extenders: [CounterExtender; MEASURING_WHEELS],
+    seq: u16,
+    next_due: Instant,
+    measured: crate::ports::UpdateCycles,
+}
+
+/// The board's readings at one update, and the flags they raised.
+struct Readings {
+    levels: u8,
+    now: Instant,
+    t_ns: u64,
+    t_us: u64,
+    status: u16,
+    totals: [i64; MEASURING_WHEELS],
+    /// The counters were read together with the edges handed over (no edge in between).
+    matched: bool,
 }
 
 /// Fixed-rate sampling and pose integration.
@@ -110,255 +142,400 @@ pub async fn odometry_task(
     mut cycles: impl crate::ports::CycleCounter,
 ) -> ! {
     let period = Duration::from_micros(config.update_period_us as u64);
-    let (raw, edge_levels) = if config.sensor == SensorMode::TickTimestamps {
-        start_edges(&mut edges, &mut counters)
-    } else {
-        (counters.read_raw(), edges.levels())
-    };
-    let mut extenders = raw.map(CounterExtender::new);
-    let mut layout: Layout = *config.layout();
-    let mut robot = config.power_on_fingerprint();
-    let mut source = match config.sensor {
-        SensorMode::Counts => SensorSource::Counts,
-        SensorMode::TickTimestamps => SensorSource::Ticks,
-    };
-    let start = SlaveEstimator::new(
-        &layout,
-        config.sensor,
-        Instant::now().as_micros() * 1000,
-        &extenders.map(|e| e.total()),
-        &edge_levels,
-        abs.read_levels() as u16,
-    );
-    let Ok(mut estimator) = start else {
+    // The task's state lives in the task's own storage (a static cell on the board: the
+    // future is built there before its first poll), built in place: nothing of it passes
+    // through the stack.
+    let mut slot = MaybeUninit::uninit();
+    let Some(odometer) = Odometer::start(&mut slot, &mut counters, &mut edges, &mut abs, config)
+    else {
         // A layout the slave cannot run is a build mistake: publish nothing, so the master's
         // freshness watchdog sees a dead slave and keeps the motors off.
         loop {
             embassy_time::Timer::after_secs(3600).await;
         }
     };
-    let mut reports = Reports::Off;
-    let mut played: Option<PlayedSensors> = None;
-    let mut recorder = Recorder::new();
-    let mut upload = Upload::default();
-    let mut sticky = 0u16;
     let mut ticker = Ticker::every(period);
-    let mut next_due = Instant::now() + period;
-    let mut seq: u16 = 0;
-    let mut measured = crate::ports::UpdateCycles::default();
+    odometer.next_due = Instant::now() + period;
     loop {
         ticker.next().await;
-        let started = cycles.cycles();
-        // Sample first, as close to the tick as possible; everything else can wait.
-        let levels = abs.read_levels();
-        let now = Instant::now();
-        let t_ns = now.as_micros() * 1000;
-        let t_us = now.as_micros();
-        // This update's own flags; the sticky ones join them when the frame is made, as the
-        // commands below leave them (an installed robot's frame must not still say rejected).
-        let mut status = slave_status::RUNNING;
-        if now > next_due + period {
-            status |= slave_status::OVERRUN;
+        odometer.update(
+            &mut counters,
+            &mut edges,
+            &mut abs,
+            shared,
+            config,
+            clock,
+            &mut cycles,
+        );
+    }
+}
+
+impl Odometer {
+    /// Build the state in `slot`, the estimator started on the board's readings; `None` if
+    /// the estimator cannot run the configured robot.
+    #[inline(never)]
+    fn start<'a>(
+        slot: &'a mut MaybeUninit<Odometer>,
+        counters: &mut impl QuadratureCounters,
+        edges: &mut impl EncoderEdges,
+        abs: &mut impl AbsoluteEncoderPins,
+        config: &SlaveConfig,
+    ) -> Option<&'a mut Odometer> {
+        let (raw, edge_levels) = if config.sensor == SensorMode::TickTimestamps {
+            start_edges(edges, counters)
+        } else {
+            (counters.read_raw(), edges.levels())
+        };
+        let o = Odometer::init(slot, config);
+        o.extenders = raw.map(CounterExtender::new);
+        let totals = o.extenders.map(|e| e.total());
+        let started = o.estimator.restart(
+            config.layout(),
+            config.sensor,
+            Instant::now().as_micros() * 1000,
+            &totals,
+            &edge_levels,
+            abs.read_levels() as u16,
+        );
+        started.ok().map(|()| o)
+    }
+
+    /// Every field written in place; the estimators at rest on the configured robot.
+    fn init<'a>(slot: &'a mut MaybeUninit<Odometer>, config: &SlaveConfig) -> &'a mut Odometer {
+        let layout = config.layout();
+        let o = slot.as_mut_ptr();
+        // SAFETY: every field is written once through a raw pointer into the slot, the two
+        // estimators in place by their own `init`; the slot is then initialised.
+        unsafe {
+            let estimator = &mut *(addr_of_mut!((*o).estimator) as *mut MaybeUninit<_>);
+            SlaveEstimator::init(estimator, layout);
+            let played = &mut *(addr_of_mut!((*o).played) as *mut MaybeUninit<_>);
+            PlayedSensors::init(played, layout);
+            addr_of_mut!((*o).playing).write(false);
+            addr_of_mut!((*o).recorder).write(Recorder::new());
+            addr_of_mut!((*o).upload).write(Upload::default());
+            addr_of_mut!((*o).layout).write(*layout);
+            addr_of_mut!((*o).robot).write(config.power_on_fingerprint());
+            addr_of_mut!((*o).uploaded).write(*layout);
+            addr_of_mut!((*o).source).write(match config.sensor {
+                SensorMode::Counts => SensorSource::Counts,
+                SensorMode::TickTimestamps => SensorSource::Ticks,
+            });
+            addr_of_mut!((*o).reports).write(Reports::Off);
+            addr_of_mut!((*o).sticky).write(0);
+            addr_of_mut!((*o).extenders).write([CounterExtender::new(0); MEASURING_WHEELS]);
+            addr_of_mut!((*o).seq).write(0);
+            addr_of_mut!((*o).next_due).write(Instant::from_ticks(0));
+            addr_of_mut!((*o).measured).write(Default::default());
+            slot.assume_init_mut()
         }
-        next_due = now + period;
-        let recording = match reports {
+    }
+
+    /// One fixed-rate update: sample, apply the master's command, integrate, report, publish.
+    // Out of line: its locals (a report stage, the readings) are this function's frame, which
+    // the stack holds only while it runs, not the task's poll function's.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn update(
+        &mut self,
+        counters: &mut impl QuadratureCounters,
+        edges: &mut impl EncoderEdges,
+        abs: &mut impl AbsoluteEncoderPins,
+        shared: &SlaveShared,
+        config: &SlaveConfig,
+        clock: crate::FrameClock,
+        cycles: &mut impl crate::ports::CycleCounter,
+    ) {
+        let started = cycles.cycles();
+        let recording = match self.reports {
             Reports::Record { pose_every } => Some(pose_every),
             _ => None,
         };
         let mut staged = Staged::new(shared.report_room());
-
-        // The board's edges: into the estimator when it reads them (and to the recorder),
-        // else drained and dropped so the queue never overflows; with the timers as they
-        // stood when the last edge was handed over.
-        let ticks_live = source == SensorSource::Ticks;
-        let batch = edges.drain(|e| {
-            if !ticks_live {
-                return;
-            }
-            if let Some(step) = estimator.on_edge(e) {
-                if recording.is_some() {
-                    recorder.tick(&mut staged, e.t_us, e.encoder, step);
-                }
-            }
-        });
-        if ticks_live && !batch.complete {
-            estimator.edges_lost();
-        }
-        let (raw, matched) = match batch.counters {
-            Some(c) => (c, ticks_live),
-            None => (counters.read_raw(), false),
-        };
-        let mut totals = [0i64; MEASURING_WHEELS];
-        for ((total, ext), raw) in totals.iter_mut().zip(&mut extenders).zip(raw) {
-            let (t, jumped) = ext.update(raw);
-            *total = t;
-            if jumped {
-                status |= slave_status::COUNTER_JUMP;
-            }
-        }
+        let mut r = self.read(
+            counters,
+            edges,
+            abs,
+            config,
+            recording.is_some(),
+            &mut staged,
+        );
 
         // Commands: robot uploads and sources here, the rest to the estimator.
         let command = shared.take_command();
-        let mut for_estimator = None;
-        // A committed robot, or a live source, restarts the estimator; in one place below
-        // (each place the slave built one took ~0.3 KB of flash).
-        let mut restart: Option<Restart> = None;
-        let mut new_streams = false;
-        match command.map(|(_, c)| c) {
-            Some(SlaveCommand::RobotWheel(p)) => upload.wheel(p),
-            Some(SlaveCommand::RobotExact(p)) => upload.exact(p),
-            Some(SlaveCommand::RobotCommit(h)) => match upload.commit(&h) {
-                Ok(l) => {
-                    restart = Some(Restart {
-                        mode: live_mode(source),
-                        robot: Some((l, h.fingerprint)),
-                        start: None,
-                    })
-                }
-                Err(_) => sticky |= slave_status::ROBOT_REJECTED,
-            },
-            Some(SlaveCommand::SetSource {
-                source: s,
-                reports: r,
-                start,
-            }) => {
-                // Both streams restart before the master learns (by the ack below) that they did.
-                shared.restart_streams(s.is_played());
-                let start_pose =
-                    FixedPose::from_micrometres(start.x_um, start.y_um, start.heading.0);
-                let method = method_of(estimator.algorithm());
-                played = None;
-                sticky &= !slave_status::EVENTS_BAD;
-                if s.is_played() {
-                    let kind = if s == SensorSource::PlayedTicks {
-                        PlayKind::Ticks
-                    } else {
-                        PlayKind::Counts
-                    };
-                    match PlayedSensors::new(
-                        &layout,
-                        method,
-                        kind,
-                        config.update_period_us,
-                        start_pose,
-                    ) {
-                        Ok(p) => played = Some(p),
-                        Err(_) => sticky |= slave_status::ALGORITHM_UNSUPPORTED,
-                    }
-                } else {
-                    restart = Some(Restart {
-                        mode: live_mode(s),
-                        robot: None,
-                        start: Some((start, method)),
-                    });
-                }
-                source = s;
-                reports = r;
-                new_streams = true;
-            }
-            other => for_estimator = other,
-        }
-        if let Some(r) = restart {
-            let fresh = SlaveEstimator::new(
-                r.robot.as_ref().map_or(&layout, |(l, _)| l),
-                r.mode,
-                t_ns,
-                &totals,
-                &edges.levels(),
-                levels as u16,
-            );
-            match fresh {
-                Ok(e) => {
-                    estimator = e;
-                    if let Some((l, fingerprint)) = r.robot {
-                        layout = l;
-                        robot = fingerprint;
-                        sticky &= !slave_status::ROBOT_REJECTED;
-                    }
-                    if let Some((start, method)) = r.start {
-                        for_estimator = Some(SlaveCommand::SetPose(start));
-                        // Keep the method the host chose (refused: flagged, as a switch is).
-                        // Only a build with the float methods can be running another: the
-                        // default image refuses every switch away from `exact`, and leaves this
-                        // out (216 B of its flash).
-                        if robot_math::odometry::FLOAT_METHODS
-                            && method != robot_math::odometry::Method::Exact
-                        {
-                            let _ = estimator.sample(
-                                t_ns,
-                                &totals,
-                                false,
-                                levels as u16,
-                                Some(SlaveCommand::SetAlgorithm(crate::algorithm_of(method))),
-                            );
-                        }
-                    }
-                }
-                Err(_) => {
-                    if r.robot.is_some() {
-                        sticky |= slave_status::ROBOT_REJECTED;
-                    }
-                }
-            }
-        }
+        let (for_estimator, new_streams) =
+            self.apply_command(command.map(|(_, c)| c), shared, config, &r, edges);
         if new_streams {
             // After the estimator's restart, which reads the edge levels as close to the
-            // drain above as it can (an edge in between would leave its decoder a step out).
-            recorder = Recorder::new();
+            // drain as it can (an edge in between would leave its decoder a step out).
+            self.recorder = Recorder::new();
             staged = Staged::new(shared.report_room());
-            if let Reports::Record { .. } = reports {
+            if let Reports::Record { .. } = self.reports {
                 // The absolute encoder first: a recording must say where it starts.
-                recorder.abs(&mut staged, t_us, levels as u16);
+                self.recorder.abs(&mut staged, r.t_us, r.levels as u16);
             }
         }
         if let Some((command_seq, _)) = command {
             shared.acknowledge(command_seq);
         }
 
-        let (pose, algorithm) = if let Some(p) = played.as_mut() {
-            play_pass(p, shared, &mut staged);
-            if p.failed() {
-                sticky |= slave_status::EVENTS_BAD;
-            }
-            (
-                p.odometry().pose(),
-                crate::algorithm_of(p.odometry().method()),
-            )
-        } else {
-            let update = estimator.sample(t_ns, &totals, matched, levels as u16, for_estimator);
-            status |= update.status;
-            if let Some(pose_every) = recording {
-                if source == SensorSource::Counts {
-                    // Counts mode: each update's count changes as ticks at its instant.
-                    record_counts(&mut recorder, &mut staged, t_us, &estimator);
-                }
-                recorder.abs(&mut staged, t_us, levels as u16);
-                recorder.update(&mut staged, t_us, wire_pose(update.pose), pose_every);
-            }
-            (update.pose, update.algorithm)
-        };
+        let (pose, algorithm) =
+            self.integrate(shared, &mut staged, &mut r, recording, for_estimator);
         shared.push_reports(staged.bytes());
 
-        seq = seq.wrapping_add(1);
+        self.seq = self.seq.wrapping_add(1);
         let frame = SlaveFrame {
-            seq,
-            time_us: clock.us(now),
+            seq: self.seq,
+            time_us: clock.us(r.now),
             pose: wire_pose(pose),
-            status: status | sticky,
+            status: r.status | self.sticky,
             algorithm,
-            robot,
-            source,
+            robot: self.robot,
+            source: self.source,
             period_us: config.update_period_us,
             ..SlaveFrame::default()
         };
         shared.publish(&frame, pose);
         if let (Some(a), Some(b)) = (started, cycles.cycles()) {
-            measured.add(b.wrapping_sub(a));
-            if measured.updates as u64 * config.update_period_us as u64 >= 1_000_000 {
-                cycles.report(&measured);
-                measured = Default::default();
+            self.measured.add(b.wrapping_sub(a));
+            if self.measured.updates as u64 * config.update_period_us as u64 >= 1_000_000 {
+                cycles.report(&self.measured);
+                self.measured = Default::default();
             }
         }
+    }
+
+    /// Sample the board: the absolute encoder first, as close to the tick as possible; then
+    /// the edges, into the estimator when it reads them (and to the recorder), else drained
+    /// and dropped so the queue never overflows, with the timers as they stood when the last
+    /// edge was handed over.
+    fn read(
+        &mut self,
+        counters: &mut impl QuadratureCounters,
+        edges: &mut impl EncoderEdges,
+        abs: &mut impl AbsoluteEncoderPins,
+        config: &SlaveConfig,
+        recording: bool,
+        staged: &mut Staged,
+    ) -> Readings {
+        let levels = abs.read_levels();
+        let now = Instant::now();
+        let period = Duration::from_micros(config.update_period_us as u64);
+        // This update's own flags; the sticky ones join them when the frame is made, as the
+        // commands leave them (an installed robot's frame must not still say rejected).
+        let mut status = slave_status::RUNNING;
+        if now > self.next_due + period {
+            status |= slave_status::OVERRUN;
+        }
+        self.next_due = now + period;
+        let ticks_live = self.source == SensorSource::Ticks;
+        let (estimator, recorder) = (&mut self.estimator, &mut self.recorder);
+        let batch = edges.drain(|e| {
+            if !ticks_live {
+                return;
+            }
+            if let Some(step) = estimator.on_edge(e) {
+                if recording {
+                    recorder.tick(staged, e.t_us, e.encoder, step);
+                }
+            }
+        });
+        if ticks_live && !batch.complete {
+            self.estimator.edges_lost();
+        }
+        let (raw, matched) = match batch.counters {
+            Some(c) => (c, ticks_live),
+            None => (counters.read_raw(), false),
+        };
+        let mut totals = [0i64; MEASURING_WHEELS];
+        for ((total, ext), raw) in totals.iter_mut().zip(&mut self.extenders).zip(raw) {
+            let (t, jumped) = ext.update(raw);
+            *total = t;
+            if jumped {
+                status |= slave_status::COUNTER_JUMP;
+            }
+        }
+        Readings {
+            levels,
+            now,
+            t_ns: now.as_micros() * 1000,
+            t_us: now.as_micros(),
+            status,
+            totals,
+            matched,
+        }
+    }
+
+    /// The master's command: robot uploads and sensor sources are the task's, the rest is the
+    /// estimator's (returned, with a set-pose after a live source's restart). Also says
+    /// whether the report streams restarted.
+    #[inline(never)]
+    fn apply_command(
+        &mut self,
+        command: Option<SlaveCommand>,
+        shared: &SlaveShared,
+        config: &SlaveConfig,
+        r: &Readings,
+        edges: &mut impl EncoderEdges,
+    ) -> (Option<SlaveCommand>, bool) {
+        // A committed robot, or a live source, restarts the estimator; in one place below
+        // (each place the slave built one took ~0.3 KB of flash).
+        let (restart, new_streams) = match command {
+            Some(SlaveCommand::RobotWheel(p)) => {
+                self.upload.wheel(p);
+                (None, false)
+            }
+            Some(SlaveCommand::RobotExact(p)) => {
+                self.upload.exact(p);
+                (None, false)
+            }
+            Some(SlaveCommand::RobotCommit(h)) => {
+                match self.upload.commit(&h, &mut self.uploaded) {
+                    Ok(()) => {
+                        let mode = live_mode(self.source);
+                        (
+                            self.restart(mode, Some(h.fingerprint), None, r, edges),
+                            false,
+                        )
+                    }
+                    Err(_) => {
+                        self.sticky |= slave_status::ROBOT_REJECTED;
+                        (None, false)
+                    }
+                }
+            }
+            Some(SlaveCommand::SetSource {
+                source,
+                reports,
+                start,
+            }) => {
+                let for_estimator = self.set_source(source, start, shared, config, r, edges);
+                self.reports = reports;
+                (for_estimator, true)
+            }
+            other => return (other, false),
+        };
+        (restart, new_streams)
+    }
+
+    /// A new sensor source (and report stream): played sensors restarted in place, or the
+    /// estimator on a live source, from `start` with the method that ran before.
+    fn set_source(
+        &mut self,
+        source: SensorSource,
+        start: protocol::Pose,
+        shared: &SlaveShared,
+        config: &SlaveConfig,
+        r: &Readings,
+        edges: &mut impl EncoderEdges,
+    ) -> Option<SlaveCommand> {
+        // Both streams restart before the master learns (by the ack) that they did.
+        shared.restart_streams(source.is_played());
+        let method = method_of(self.estimator.algorithm());
+        self.playing = false;
+        self.sticky &= !slave_status::EVENTS_BAD;
+        self.source = source;
+        if !source.is_played() {
+            return self.restart(live_mode(source), None, Some((start, method)), r, edges);
+        }
+        let kind = if source == SensorSource::PlayedTicks {
+            PlayKind::Ticks
+        } else {
+            PlayKind::Counts
+        };
+        let start = FixedPose::from_micrometres(start.x_um, start.y_um, start.heading.0);
+        let period = config.update_period_us;
+        match self
+            .played
+            .restart(&self.layout, method, kind, period, start)
+        {
+            Ok(()) => self.playing = true,
+            Err(_) => self.sticky |= slave_status::ALGORITHM_UNSUPPORTED,
+        }
+        None
+    }
+
+    /// The estimator started again in place on the board's readings: on the robot just
+    /// committed (`robot`: its fingerprint), or from a live source's start pose with the
+    /// method that ran before (returned as the set-pose command for this update).
+    fn restart(
+        &mut self,
+        mode: SensorMode,
+        robot: Option<u32>,
+        start: Option<(protocol::Pose, robot_math::odometry::Method)>,
+        r: &Readings,
+        edges: &mut impl EncoderEdges,
+    ) -> Option<SlaveCommand> {
+        let layout = if robot.is_some() {
+            &self.uploaded
+        } else {
+            &self.layout
+        };
+        let abs = r.levels as u16;
+        let levels = edges.levels();
+        let started = self
+            .estimator
+            .restart(layout, mode, r.t_ns, &r.totals, &levels, abs);
+        if started.is_err() {
+            // `exact` runs every checked layout, so this is not expected; the robot that ran
+            // runs on, from the origin.
+            if robot.is_some() {
+                self.sticky |= slave_status::ROBOT_REJECTED;
+                let _ =
+                    (self.estimator).restart(&self.layout, mode, r.t_ns, &r.totals, &levels, abs);
+            }
+            return None;
+        }
+        if let Some(fingerprint) = robot {
+            self.layout = self.uploaded;
+            self.robot = fingerprint;
+            self.sticky &= !slave_status::ROBOT_REJECTED;
+        }
+        let (start, method) = start?;
+        // Keep the method the host chose (refused: flagged, as a switch is). Only a build
+        // with the float methods can be running another: the default image refuses every
+        // switch away from `exact`, and leaves this out (216 B of its flash).
+        if robot_math::odometry::FLOAT_METHODS && method != robot_math::odometry::Method::Exact {
+            let switch = SlaveCommand::SetAlgorithm(crate::algorithm_of(method));
+            let _ = self
+                .estimator
+                .sample(r.t_ns, &r.totals, false, abs, Some(switch));
+        }
+        Some(SlaveCommand::SetPose(start))
+    }
+
+    /// This update's pose: from the played sensors (as far as the played events go), or from
+    /// the estimator on the board's readings (recorded when recording).
+    fn integrate(
+        &mut self,
+        shared: &SlaveShared,
+        staged: &mut Staged,
+        r: &mut Readings,
+        recording: Option<u16>,
+        for_estimator: Option<SlaveCommand>,
+    ) -> (FixedPose, protocol::spi::OdometryAlgorithm) {
+        if self.playing {
+            let p = &mut self.played;
+            play_pass(p, shared, staged);
+            if p.failed() {
+                self.sticky |= slave_status::EVENTS_BAD;
+            }
+            let odometry = p.odometry();
+            return (odometry.pose(), crate::algorithm_of(odometry.method()));
+        }
+        let levels = r.levels as u16;
+        let update = (self.estimator).sample(r.t_ns, &r.totals, r.matched, levels, for_estimator);
+        r.status |= update.status;
+        if let Some(pose_every) = recording {
+            if self.source == SensorSource::Counts {
+                // Counts mode: each update's count changes as ticks at its instant.
+                record_counts(&mut self.recorder, staged, r.t_us, &self.estimator);
+            }
+            self.recorder.abs(staged, r.t_us, levels);
+            let pose = wire_pose(update.pose);
+            self.recorder.update(staged, r.t_us, pose, pose_every);
+        }
+        (update.pose, update.algorithm)
     }
 }
 

@@ -16,6 +16,9 @@
 //! stream's first reading. (Started at position 0, a carriage whose swivel stood elsewhere
 //! rolled its whole track turned by the difference.)
 
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
+
 use protocol::events::{Event, EventDecoder, Sample, SampleDecoder, Step};
 use protocol::spi::{pose_digest, Report};
 use robot_math::exact::{FixedPose, MAX_ENCODERS};
@@ -76,6 +79,9 @@ fn sensor_kind(kind: PlayKind) -> SensorKind {
 
 impl PlayedSensors {
     /// Start at `start` at played time 0, all counts zero.
+    ///
+    /// By value, for the host; the board builds its played sensors in place
+    /// ([`init`](Self::init) and [`restart`](Self::restart)).
     pub fn new(
         layout: &Layout,
         method: Method,
@@ -83,48 +89,78 @@ impl PlayedSensors {
         period_us: u32,
         start: FixedPose,
     ) -> Result<Self, Unsupported> {
-        let odometry = Odometry::new(
+        let mut slot = MaybeUninit::uninit();
+        PlayedSensors::init(&mut slot, layout).restart(layout, method, kind, period_us, start)?;
+        // SAFETY: `init` wrote every field.
+        Ok(unsafe { slot.assume_init() })
+    }
+
+    /// Build played sensors in place in `slot` (the board's static cell), as a start for
+    /// [`restart`](Self::restart): `exact` over `layout` reading counts, nothing played,
+    /// failed (so nothing is taken in before a restart). Cannot fail.
+    pub fn init<'a>(slot: &'a mut MaybeUninit<Self>, layout: &Layout) -> &'a mut Self {
+        let p = slot.as_mut_ptr();
+        // SAFETY: every field written once through a raw pointer into the slot, the
+        // odometry in place by its own `init`; the slot is then initialised.
+        unsafe {
+            let odometry = &mut *(addr_of_mut!((*p).odometry) as *mut MaybeUninit<Odometry>);
+            Odometry::init(odometry, layout);
+            addr_of_mut!((*p).decoder).write(Decoder::Counts(SampleDecoder::new()));
+            addr_of_mut!((*p).period_ns).write(1000);
+            addr_of_mut!((*p).next_update_ns).write(1000);
+            addr_of_mut!((*p).counts).write([0; MAX_ENCODERS]);
+            addr_of_mut!((*p).pending).write(None);
+            addr_of_mut!((*p).offset).write(0);
+            addr_of_mut!((*p).failed).write(true);
+            addr_of_mut!((*p).updates).write(0);
+            addr_of_mut!((*p).at_start).write(true);
+            slot.assume_init_mut()
+        }
+    }
+
+    /// Start again in place, as [`new`](Self::new) would have started. On `Err` (a method
+    /// this build lacks) the sensors are failed: they take nothing in until the next restart.
+    pub fn restart(
+        &mut self,
+        layout: &Layout,
+        method: Method,
+        kind: PlayKind,
+        period_us: u32,
+        start: FixedPose,
+    ) -> Result<(), Unsupported> {
+        let started = self.odometry.restart(
             layout,
             method,
             sensor_kind(kind),
             start,
             0,
-            [0; MAX_ENCODERS],
+            &[0; MAX_ENCODERS],
             None,
-        )?;
+        );
         let period_ns = (period_us.max(1) as u64) * 1000;
-        Ok(PlayedSensors {
-            odometry,
-            decoder: match kind {
-                PlayKind::Ticks => Decoder::Ticks(EventDecoder::new()),
-                PlayKind::Counts => Decoder::Counts(SampleDecoder::new()),
-            },
-            period_ns,
-            next_update_ns: period_ns,
-            counts: [0; MAX_ENCODERS],
-            pending: None,
-            offset: 0,
-            failed: false,
-            updates: 0,
-            at_start: true,
-        })
+        self.decoder = match kind {
+            PlayKind::Ticks => Decoder::Ticks(EventDecoder::new()),
+            PlayKind::Counts => Decoder::Counts(SampleDecoder::new()),
+        };
+        self.period_ns = period_ns;
+        self.next_update_ns = period_ns;
+        self.counts = [0; MAX_ENCODERS];
+        self.pending = None;
+        self.offset = 0;
+        self.failed = started.is_err();
+        self.updates = 0;
+        self.at_start = true;
+        started
     }
 
-    /// Start again as [`PlayedSensors::new`] did, but with the absolute encoder at `code`.
+    /// Start again as [`PlayedSensors::restart`] did, but with the absolute encoder at
+    /// `code`: the odometry restarted in place from its own settings.
     fn start_at_abs(&mut self, code: u16) {
-        let o = &self.odometry;
-        // What `new` built from these same settings; it cannot fail now.
-        if let Ok(o) = Odometry::new(
-            o.layout(),
-            o.method(),
-            o.sensors(),
-            o.pose(),
-            0,
-            [0; MAX_ENCODERS],
-            Some(code),
-        ) {
-            self.odometry = o;
-        }
+        let o = &mut self.odometry;
+        let (method, sensors, pose) = (o.method(), o.sensors(), o.pose());
+        // What `restart` started from these same settings; it cannot fail now.
+        let zeros = [0; MAX_ENCODERS];
+        let _ = o.restart_on_own_layout(method, sensors, pose, 0, &zeros, Some(code));
     }
 
     pub fn odometry(&self) -> &Odometry {

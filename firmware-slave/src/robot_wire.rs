@@ -109,18 +109,26 @@ impl Upload {
         }
     }
 
-    /// Check the parts against `header` and build the layout; the parts are cleared either way.
+    /// Check the parts against `header` and build the layout into `into` (left as it was on
+    /// `Err`); the parts are cleared either way.
     // Cold (an upload's end), and out of line for the image's size (388 B), as
     // `odometry_task`'s `wire_pose`.
     #[inline(never)]
-    pub fn commit(&mut self, header: &RobotHeader) -> Result<Layout, UploadError> {
-        let parts = core::mem::take(self);
+    pub fn commit(&mut self, header: &RobotHeader, into: &mut Layout) -> Result<(), UploadError> {
+        let built = self.build(header);
+        *self = Upload::default();
+        *into = built?;
+        Ok(())
+    }
+
+    /// The layout the parts and `header` describe.
+    fn build(&self, header: &RobotHeader) -> Result<Layout, UploadError> {
         let n = (header.encoders as usize).min(MAX_ENCODERS);
         let mut wheels = [WheelPart::default(); MAX_ENCODERS];
         let mut exact = [ExactPart::default(); MAX_ENCODERS];
         for j in 0..n {
-            wheels[j] = parts.wheels[j].ok_or(UploadError::Missing { index: j as u8 })?;
-            exact[j] = parts.exact[j].ok_or(UploadError::Missing { index: j as u8 })?;
+            wheels[j] = self.wheels[j].ok_or(UploadError::Missing { index: j as u8 })?;
+            exact[j] = self.exact[j].ok_or(UploadError::Missing { index: j as u8 })?;
         }
         let got = fingerprint(&wheels[..n], &exact[..n], header);
         if got != header.fingerprint {
@@ -176,13 +184,18 @@ mod tests {
             up.wheel(postcard::from_bytes(bytes).unwrap());
             up.exact(e[j]);
         }
-        assert_eq!(up.commit(&h), Ok(layout));
+        let mut into = Layout::SEED_004;
+        assert_eq!(up.commit(&h, &mut into), Ok(()));
+        assert_eq!(into, layout);
         // A part missing, or a changed constant, is refused.
         let mut up = Upload::default();
         up.wheel(w[0]);
         up.exact(e[0]);
         up.exact(e[1]);
-        assert_eq!(up.commit(&h), Err(UploadError::Missing { index: 1 }));
+        assert_eq!(
+            up.commit(&h, &mut into),
+            Err(UploadError::Missing { index: 1 })
+        );
         let mut up = Upload::default();
         up.wheel(w[0]);
         up.wheel(w[1]);
@@ -192,7 +205,7 @@ mod tests {
             ..e[1]
         });
         assert!(matches!(
-            up.commit(&h),
+            up.commit(&h, &mut into),
             Err(UploadError::Fingerprint { .. })
         ));
     }

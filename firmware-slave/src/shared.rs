@@ -51,6 +51,12 @@ impl<const N: usize> Ring<N> {
             len: 0,
         }
     }
+    /// Empty, in place (a new ring built on the stack to be copied over this one would be
+    /// half a kilobyte of the board's stack).
+    fn clear(&mut self) {
+        self.head = 0;
+        self.len = 0;
+    }
     fn push(&mut self, bytes: &[u8]) {
         for &b in bytes.iter().take(N - self.len) {
             self.buf[(self.head + self.len) % N] = b;
@@ -154,7 +160,7 @@ impl SlaveShared {
     pub(crate) fn restart_streams(&self, played: bool) {
         self.with(|s| {
             s.events_rx = ChunkReceiver::new();
-            s.events = Ring::new();
+            s.events.clear();
             s.events_open = played;
             s.reports.reset();
         });

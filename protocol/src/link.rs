@@ -178,6 +178,23 @@ impl<const BYTES: usize, const CHUNK: usize> GbnSender<BYTES, CHUNK> {
         }
     }
 
+    /// [`new`](Self::new) again, in place: the buffer's old bytes are never read again
+    /// (`len` is 0), and a new sender built on a board's stack to be copied over this one
+    /// would be its whole buffer there.
+    pub fn reset(&mut self, timeout_us: u64) {
+        self.head = 0;
+        self.len = 0;
+        self.base = 0;
+        self.sent_hi = 0;
+        self.cursor = 0;
+        self.edge = 0;
+        self.recover_end = None;
+        self.timeout_us = timeout_us;
+        self.backoff = 0;
+        self.timer_us = None;
+        self.stats = SenderStats::default();
+    }
+
     /// Room for [`offer`](Self::offer), in bytes.
     pub fn free(&self) -> usize {
         BYTES - self.len
@@ -392,6 +409,17 @@ impl<const BYTES: usize> GbnReceiver<BYTES> {
                 acks_sent: 0,
             },
         }
+    }
+
+    /// [`new`](Self::new) again, in place (see [`GbnSender::reset`]).
+    pub fn reset(&mut self) {
+        self.head = 0;
+        self.len = 0;
+        self.next = 0;
+        self.ack_due = false;
+        self.gap = false;
+        self.advertised_edge = 0;
+        self.stats = ReceiverStats::default();
     }
 
     /// Bytes received and not read yet.

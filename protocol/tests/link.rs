@@ -79,7 +79,7 @@ impl Scenario {
     }
 }
 
-#[derive(Debug)]
+#[derive(Debug, PartialEq)]
 struct Outcome {
     steps: u64,
     frames_sent: u32,
@@ -92,6 +92,11 @@ struct Outcome {
 fn run(s: &Scenario) -> Outcome {
     let mut tx = GbnSender::<TX_BYTES>::new(TIMEOUT_US);
     let mut rx = GbnReceiver::<RX_BYTES>::new();
+    run_on(s, &mut tx, &mut rx)
+}
+
+/// [`run`] on the given ends.
+fn run_on(s: &Scenario, tx: &mut GbnSender<TX_BYTES>, rx: &mut GbnReceiver<RX_BYTES>) -> Outcome {
     let mut rng = Rng::new(s.seed);
     let latency_us = 300;
     let mut to_rx: Vec<(u64, DataFrame)> = Vec::new();
@@ -165,6 +170,29 @@ fn run(s: &Scenario) -> Outcome {
         tx.stats(),
         rx.stats()
     );
+}
+
+/// The boards reset their ends in place (`reset`, a new session) rather than build new ones
+/// on their small stacks: a reset pair must then act exactly as a new pair, whatever the old
+/// session left in flight, in its buffers and in its statistics.
+#[test]
+fn reset_ends_act_as_new_ones() {
+    let mut lossy = Scenario::new(pattern(3000));
+    lossy.faults.loss = 100;
+    lossy.faults.ack_loss = 100;
+    lossy.seed = 7;
+    let mut tx = GbnSender::<TX_BYTES>::new(TIMEOUT_US);
+    let mut rx = GbnReceiver::<RX_BYTES>::new();
+    run_on(&lossy, &mut tx, &mut rx);
+    // Leave the old session mid-flight: bytes offered, a frame sent, the timer running.
+    tx.offer(&pattern(700));
+    let frame = tx.poll_transmit(0).expect("a frame to send");
+    rx.on_data(&frame);
+    tx.reset(TIMEOUT_US);
+    rx.reset();
+    lossy.seed = 8;
+    let after_reset = run_on(&lossy, &mut tx, &mut rx);
+    assert_eq!(after_reset, run(&lossy));
 }
 
 fn pattern(len: usize) -> Vec<u8> {

@@ -1,5 +1,8 @@
 //! [`Odometry`]: one estimator over a [`Layout`], any [`Method`], either [`SensorKind`].
 
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
+
 use super::{Layout, Method, SensorKind, Unsupported};
 use crate::carriage::CarriageExact;
 use crate::exact::{ExactOdometry, FixedPose, MAX_ENCODERS};
@@ -90,6 +93,10 @@ impl Odometry {
     /// Start `method` at `start` at `t_ns`, with the encoders at `counts` (cumulative whole
     /// counts; entries past the layout's encoders are ignored) and the absolute encoder's raw
     /// output `abs_code` (`None`: none read yet, position 0).
+    ///
+    /// Returns the estimator by value (1.3 KB with a carriage): on the host that costs nothing,
+    /// but on a 20 KiB board build it in place instead ([`init`](Self::init) into its static
+    /// cell, then [`restart`](Self::restart)), which is what this does on a local slot.
     pub fn new(
         layout: &Layout,
         method: Method,
@@ -99,41 +106,125 @@ impl Odometry {
         counts: [i64; MAX_ENCODERS],
         abs_code: Option<u16>,
     ) -> Result<Odometry, Unsupported> {
-        let n = layout.encoders();
-        let counts: [i64; MAX_ENCODERS] =
-            core::array::from_fn(|j| if j < n { counts[j] } else { 0 });
-        let abs = match (layout.abs(), abs_code) {
+        let mut slot = MaybeUninit::uninit();
+        Odometry::init(&mut slot, layout)
+            .restart(layout, method, sensors, start, t_ns, &counts, abs_code)?;
+        // SAFETY: `init` wrote every field.
+        Ok(unsafe { slot.assume_init() })
+    }
+
+    /// Build an estimator in place in `slot` (a static cell on a board: nothing of it passes
+    /// through the stack), as a start for [`restart`](Self::restart): `exact` over `layout`
+    /// at the origin at time 0, every count 0, the counters' way. Cannot fail.
+    pub fn init<'a>(slot: &'a mut MaybeUninit<Odometry>, layout: &Layout) -> &'a mut Odometry {
+        let o = slot.as_mut_ptr();
+        // SAFETY: every field is written once, through a raw pointer into the slot (no
+        // reference to the uninitialised whole is made); the slot is then initialised.
+        // Arrays are written element by element, each a few words, so no whole array is
+        // built on the stack first.
+        unsafe {
+            addr_of_mut!((*o).layout).write(*layout);
+            addr_of_mut!((*o).method).write(Method::Exact);
+            addr_of_mut!((*o).sensors).write(SensorKind::Counts);
+            let trackers = addr_of_mut!((*o).trackers) as *mut TickTracker;
+            let recent = addr_of_mut!((*o).recent) as *mut RecentTicks;
+            for j in 0..MAX_ENCODERS {
+                trackers.add(j).write(TickTracker::starting(0, 0));
+                recent.add(j).write(RecentTicks::default());
+            }
+            addr_of_mut!((*o).keep_edges).write(false);
+            addr_of_mut!((*o).counts).write([0; MAX_ENCODERS]);
+            addr_of_mut!((*o).positions).write([0; MAX_ENCODERS]);
+            addr_of_mut!((*o).abs).write(0);
+            addr_of_mut!((*o).pose).write(FixedPose::default());
+            addr_of_mut!((*o).lut_origin).write((
+                crate::lut::DEFAULT_ORIGIN_LSB,
+                crate::lut::DEFAULT_ORIGIN_LSB,
+            ));
+            addr_of_mut!((*o).state).write(State::Exact(ExactState::Body(ExactOdometry::new(
+                *layout.exact(),
+                FixedPose::default(),
+                &[0; MAX_ENCODERS],
+            ))));
+            slot.assume_init_mut()
+        }
+    }
+
+    /// Start again, in place, as [`new`](Self::new) would have started: `method` over
+    /// `layout` at `start` at `t_ns`, the encoders at `counts`, the absolute encoder's raw
+    /// output `abs_code`. Nothing larger than the method's state (a few hundred bytes) is
+    /// built on the stack.
+    ///
+    /// On `Err` (a method this build or this layout cannot run) the readings are the new
+    /// ones and `exact` runs instead, from `start`; `exact` runs any layout that
+    /// [`Layout`]'s checks let through.
+    #[allow(clippy::too_many_arguments)]
+    pub fn restart(
+        &mut self,
+        layout: &Layout,
+        method: Method,
+        sensors: SensorKind,
+        start: FixedPose,
+        t_ns: u64,
+        counts: &[i64; MAX_ENCODERS],
+        abs_code: Option<u16>,
+    ) -> Result<(), Unsupported> {
+        self.layout = *layout;
+        self.restart_on_own_layout(method, sensors, start, t_ns, counts, abs_code)
+    }
+
+    /// [`restart`](Self::restart) on the layout it runs already (a copy of which, to pass
+    /// it, would be 320 B of a board's stack).
+    #[inline(never)]
+    pub fn restart_on_own_layout(
+        &mut self,
+        method: Method,
+        sensors: SensorKind,
+        start: FixedPose,
+        t_ns: u64,
+        counts: &[i64; MAX_ENCODERS],
+        abs_code: Option<u16>,
+    ) -> Result<(), Unsupported> {
+        let n = self.layout.encoders();
+        self.sensors = sensors;
+        self.keep_edges = false;
+        for (j, &count) in counts.iter().enumerate() {
+            let c = if j < n { count } else { 0 };
+            self.counts[j] = c;
+            // Counts mode keeps them with the counts (`set_counts`) and reads them as they
+            // are: they start at the counts `exact` starts from, or an update before the
+            // first `set_counts` would integrate a move from there back to zero.
+            self.positions[j] = c.wrapping_shl(16);
+            self.trackers[j] = TickTracker::starting(c, t_ns);
+            self.recent[j] = RecentTicks::default();
+        }
+        self.abs = match (self.layout.abs(), abs_code) {
             (Some(a), Some(raw)) => a.decode(raw),
             _ => 0,
         };
-        let mut odo = Odometry {
-            layout: *layout,
-            method,
-            sensors,
-            trackers: counts.map(|c| TickTracker::starting(c, t_ns)),
-            recent: [RecentTicks::default(); MAX_ENCODERS],
-            keep_edges: false,
-            counts,
-            // Counts mode keeps them with the counts (`set_counts`) and reads them as they are:
-            // they start at the counts `exact` starts from, or an update before the first
-            // `set_counts` would integrate a move from there back to zero.
-            positions: counts.map(|c| c.wrapping_shl(16)),
-            abs,
-            pose: start,
-            lut_origin: (
-                crate::lut::DEFAULT_ORIGIN_LSB,
-                crate::lut::DEFAULT_ORIGIN_LSB,
-            ),
-            // Replaced below; `exact` cannot fail on a checked layout.
-            state: State::Exact(ExactState::Body(ExactOdometry::new(
-                *layout.exact(),
-                start,
-                &[0; MAX_ENCODERS],
-            ))),
+        self.pose = start;
+        self.lut_origin = (
+            crate::lut::DEFAULT_ORIGIN_LSB,
+            crate::lut::DEFAULT_ORIGIN_LSB,
+        );
+        let built = self.build(method, start, t_ns);
+        let (method, state, result) = match built {
+            Ok(state) => (method, state, Ok(())),
+            Err(e) => {
+                // `exact` over a checked layout: the carriage's bounds are `Layout`'s.
+                let state = self.build(Method::Exact, start, t_ns).unwrap_or_else(|_| {
+                    State::Exact(ExactState::Body(ExactOdometry::new(
+                        *self.layout.exact(),
+                        start,
+                        &self.positions,
+                    )))
+                });
+                (Method::Exact, state, Err(e))
+            }
         };
-        let state = odo.build(method, start, t_ns)?;
-        odo.set_state(state);
-        Ok(odo)
+        self.method = method;
+        self.set_state(state);
+        result
     }
 
     /// Put the field origin at `origin_lsb` inside seed 001's unsigned coordinate square
