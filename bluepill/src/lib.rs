@@ -36,6 +36,35 @@ mod board {
         config
     }
 
+    /// Mask every NVIC line whose vector is `DefaultHandler`. `embassy_stm32::init` enables
+    /// the interrupts of every DMA channel and EXTI line, but a board binds handlers only for
+    /// the ones it uses; the rest point at cortex-m-rt's `DefaultHandler`, an endless loop, so
+    /// a stray pending bit (a DMA channel's, an EXTI line's) would hang the board. Call it
+    /// right after `embassy_stm32::init`, before the board enables its own lines (each bound
+    /// to a handler). The chip model (`scripts/board-model boot`) lists any line left.
+    pub fn mask_unhandled_interrupts() {
+        extern "C" {
+            fn DefaultHandler();
+        }
+        /// The STM32F103C8's device interrupts, a medium-density part (RM0008 §10.1.2,
+        /// table 63: positions 0 to 42, USBWakeup the last).
+        const LINES: usize = 43;
+        let default = DefaultHandler as *const () as usize & !1;
+        // SAFETY: VTOR points at the vector table the image was linked with (cortex-m-rt sets
+        // it at reset); its device entries follow the 16 system ones, a word each. Writing a
+        // 1 to an ICER bit only disables that line.
+        unsafe {
+            let nvic = &*cortex_m::peripheral::NVIC::PTR;
+            let table = (*cortex_m::peripheral::SCB::PTR).vtor.read() as *const usize;
+            for line in 0..LINES {
+                let vector = core::ptr::read_volatile(table.add(16 + line));
+                if vector & !1 == default {
+                    nvic.icer[line / 32].write(1 << (line % 32));
+                }
+            }
+        }
+    }
+
     /// A timer counting a wheel encoder (both boards: the slave's measuring wheels, the
     /// master's motors): mode 3 counts both edges of both channels (x4, the finest
     /// resolution), the 16-bit counter wraps through its whole range (the portable code takes

@@ -58,6 +58,7 @@ pub fn init(config: &MasterConfig) -> Board {
     // JTAG off, SWD kept: frees PB4 for motor 1's encoder.
     chip.swj = embassy_stm32::gpio::SwjCfg::SwdOnly;
     let p = embassy_stm32::init(chip);
+    bluepill::mask_unhandled_interrupts();
 
     // Motors first: the driver enable pin goes low (drivers off) as early as possible.
     let motors = Motors::new(p.TIM2, p.PA0, p.PA1, p.PA2, p.PB12, p.PB13, p.PB14, p.PB15);

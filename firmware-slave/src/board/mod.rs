@@ -40,6 +40,7 @@ pub struct Board {
 /// Bring up the clocks and build every port. Called once, from `main`.
 pub fn init() -> Board {
     let p = embassy_stm32::init(bluepill::clock_config());
+    bluepill::mask_unhandled_interrupts();
     bluepill::crc::install(embassy_stm32::crc::Crc::new(p.CRC));
 
     let counters = Counters::new(p.TIM2, p.PA0, p.PA1, p.TIM1, p.PA8, p.PA9);
