@@ -45,6 +45,26 @@ class Peripheral:
         return (old & ~mask) | (value & mask)
 
 
+class Streaming(Peripheral):
+    """A peripheral whose bytes move by DMA while it catches up (SPI, USART): its `_sync` reads
+    and writes memory through the DMA, and a DMA access syncs the peripheral again. The guard
+    makes that inner call a no-op; the outer loop goes on from where it is."""
+
+    _in_sync = False
+
+    def sync(self, now):
+        if self._in_sync:
+            return
+        self._in_sync = True
+        try:
+            self._sync(now)
+        finally:
+            self._in_sync = False
+
+    def _sync(self, now):
+        """Advance to `now`; see `Peripheral.sync`."""
+
+
 class Reserved(Peripheral):
     """A block that exists in the memory map but is not modelled: reads 0, writes ignored,
     every first access to a register is logged."""

@@ -16,10 +16,10 @@ Not modelled: CRC, 16-bit frames' timing differences, bidirectional/RX-only mode
 first (bits are not reordered: both ends use the same order), the SCK/MOSI pin waveforms.
 """
 
-from .periph import Peripheral
+from .periph import Streaming
 
 
-class Spi(Peripheral):
+class Spi(Streaming):
     def __init__(self, chip, base, name, apb, irq, miso_pin=None):
         self.name = name
         self.apb = apb
@@ -64,17 +64,6 @@ class Spi(Peripheral):
             self.shift_done = t + self.byte_ticks()
             return True
         return False
-
-    _in_sync = False
-
-    def sync(self, now):
-        if self._in_sync:           # re-entered from a DMA access during the loop below
-            return
-        self._in_sync = True
-        try:
-            self._sync(now)
-        finally:
-            self._in_sync = False
 
     def _dma_pair(self):
         """(rx, tx) DMA channels when a plain DMA transfer runs both ways (8-bit, memory

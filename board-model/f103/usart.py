@@ -15,10 +15,10 @@ IrDA, half-duplex, synchronous mode, hardware flow control, multiprocessor wake-
 
 from collections import deque
 
-from .periph import Peripheral
+from .periph import Streaming
 
 
-class Usart(Peripheral):
+class Usart(Streaming):
     def __init__(self, chip, base, name, apb, irq):
         self.name = name
         self.apb = apb
@@ -72,17 +72,6 @@ class Usart(Peripheral):
             self.shift_done = t + self.frame_ticks()
             return True
         return False
-
-    _in_sync = False
-
-    def sync(self, now):
-        if self._in_sync:           # re-entered from a DMA access during the loop below
-            return
-        self._in_sync = True
-        try:
-            self._sync(now)
-        finally:
-            self._in_sync = False
 
     def _sync(self, now):
         changed = False

@@ -10,7 +10,6 @@
 //! `reports_out` has room (the rest it sends again). Sans-IO: the controller calls it.
 
 use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
 use protocol::chunks::{ChunkReceiver, ChunkSender};
 use protocol::link::{Ack, DataFrame, GbnReceiver, GbnSender, DEFAULT_TIMEOUT_US, MAX_CHUNK};
 use protocol::serial::MasterToHost;
@@ -35,28 +34,27 @@ impl Default for Relay {
 }
 
 impl Relay {
-    pub const fn new() -> Self {
-        Relay {
-            events_in: GbnReceiver::new(),
-            events_out: ChunkSender::new(),
-            reports_in: ChunkReceiver::new(),
-            reports_out: GbnSender::new(DEFAULT_TIMEOUT_US),
-        }
+    /// By value, for the host's tests; the board builds its relay in place
+    /// ([`init`](Self::init)).
+    pub fn new() -> Self {
+        let mut slot = MaybeUninit::uninit();
+        Relay::init(&mut slot);
+        // SAFETY: `init` wrote every field.
+        unsafe { slot.assume_init() }
     }
 
-    /// [`new`](Self::new), written in place into `slot` (the controller's static cell), a
-    /// field at a time: the relay is 1.7 KB, too much to build on the master's stack and copy.
+    /// A relay written in place into `slot` (the controller's static cell), a field at a
+    /// time: the relay is 1.7 KB, too much to build on the master's stack and copy.
     pub fn init(slot: &mut MaybeUninit<Relay>) -> &mut Relay {
-        let r = slot.as_mut_ptr();
-        // SAFETY: every field written once through a raw pointer into the slot (the literal in
-        // `new` names them all); the slot is then initialised.
-        unsafe {
-            addr_of_mut!((*r).events_in).write(GbnReceiver::new());
-            addr_of_mut!((*r).events_out).write(ChunkSender::new());
-            addr_of_mut!((*r).reports_in).write(ChunkReceiver::new());
-            addr_of_mut!((*r).reports_out).write(GbnSender::new(DEFAULT_TIMEOUT_US));
-            slot.assume_init_mut()
-        }
+        robot_math::init_in_place!(
+            slot,
+            Relay {
+                events_in: GbnReceiver::new(),
+                events_out: ChunkSender::new(),
+                reports_in: ChunkReceiver::new(),
+                reports_out: GbnSender::new(DEFAULT_TIMEOUT_US),
+            }
+        )
     }
 
     /// A new host session (hello): both serial streams restart at offset 0.

@@ -8,7 +8,6 @@
 //! sensor source (e.g. played-back events) can feed the same path.
 
 use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
 
 use protocol::spi::{slave_status, OdometryAlgorithm, SlaveCommand, ENCODER_SLOTS};
 use robot_math::exact::{FixedPose, MAX_ENCODERS};
@@ -97,17 +96,16 @@ impl SlaveEstimator {
     /// Build an estimator in place in `slot` (the board's static cell): `exact` over `layout`
     /// at rest, a start for [`restart`](Self::restart). Cannot fail.
     pub fn init<'a>(slot: &'a mut MaybeUninit<Self>, layout: &Layout) -> &'a mut Self {
-        let e = slot.as_mut_ptr();
-        // SAFETY: every field written once through a raw pointer into the slot, the
-        // odometry in place by its own `init`; the slot is then initialised.
-        unsafe {
-            let odometry = &mut *(addr_of_mut!((*e).odometry) as *mut MaybeUninit<Odometry>);
-            Odometry::init(odometry, layout);
-            addr_of_mut!((*e).decoders).write([QuadratureDecoder::new(0); ENCODER_SLOTS]);
-            addr_of_mut!((*e).pending).write(0);
-            addr_of_mut!((*e).unsupported).write(false);
-            slot.assume_init_mut()
-        }
+        robot_math::init_in_place!(
+            slot,
+            SlaveEstimator {
+                decoders: [QuadratureDecoder::new(0); ENCODER_SLOTS],
+                pending: 0,
+                unsupported: false,
+            } in_place {
+                odometry: Odometry::init(layout),
+            }
+        )
     }
 
     /// Start again in place, as [`new`](Self::new) would have started. On `Err` the

@@ -7,7 +7,6 @@
 //! robot can be replaced at run time (an upload of [`protocol::robot`] parts).
 
 use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
 
 use embassy_time::{Duration, Instant, Ticker};
 use postcard::experimental::max_size::MaxSize;
@@ -203,32 +202,30 @@ impl Odometer {
     /// Every field written in place; the estimators at rest on the configured robot.
     fn init<'a>(slot: &'a mut MaybeUninit<Odometer>, config: &SlaveConfig) -> &'a mut Odometer {
         let layout = config.layout();
-        let o = slot.as_mut_ptr();
-        // SAFETY: every field is written once through a raw pointer into the slot, the two
-        // estimators in place by their own `init`; the slot is then initialised.
-        unsafe {
-            let estimator = &mut *(addr_of_mut!((*o).estimator) as *mut MaybeUninit<_>);
-            SlaveEstimator::init(estimator, layout);
-            let played = &mut *(addr_of_mut!((*o).played) as *mut MaybeUninit<_>);
-            PlayedSensors::init(played, layout);
-            addr_of_mut!((*o).playing).write(false);
-            addr_of_mut!((*o).recorder).write(Recorder::new());
-            addr_of_mut!((*o).upload).write(Upload::default());
-            addr_of_mut!((*o).layout).write(*layout);
-            addr_of_mut!((*o).robot).write(config.power_on_fingerprint());
-            addr_of_mut!((*o).uploaded).write(*layout);
-            addr_of_mut!((*o).source).write(match config.sensor {
-                SensorMode::Counts => SensorSource::Counts,
-                SensorMode::TickTimestamps => SensorSource::Ticks,
-            });
-            addr_of_mut!((*o).reports).write(Reports::Off);
-            addr_of_mut!((*o).sticky).write(0);
-            addr_of_mut!((*o).extenders).write([CounterExtender::new(0); MEASURING_WHEELS]);
-            addr_of_mut!((*o).seq).write(0);
-            addr_of_mut!((*o).next_due).write(Instant::from_ticks(0));
-            addr_of_mut!((*o).measured).write(Default::default());
-            slot.assume_init_mut()
-        }
+        robot_math::init_in_place!(
+            slot,
+            Odometer {
+                playing: false,
+                recorder: Recorder::new(),
+                upload: Upload::default(),
+                layout: *layout,
+                robot: config.power_on_fingerprint(),
+                uploaded: *layout,
+                source: match config.sensor {
+                    SensorMode::Counts => SensorSource::Counts,
+                    SensorMode::TickTimestamps => SensorSource::Ticks,
+                },
+                reports: Reports::Off,
+                sticky: 0,
+                extenders: [CounterExtender::new(0); MEASURING_WHEELS],
+                seq: 0,
+                next_due: Instant::from_ticks(0),
+                measured: Default::default(),
+            } in_place {
+                estimator: SlaveEstimator::init(layout),
+                played: PlayedSensors::init(layout),
+            }
+        )
     }
 
     /// One fixed-rate update: sample, apply the master's command, integrate, report, publish.

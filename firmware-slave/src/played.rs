@@ -17,7 +17,6 @@
 //! rolled its whole track turned by the difference.)
 
 use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
 
 use protocol::events::{Event, EventDecoder, Sample, SampleDecoder, Step};
 use protocol::spi::{pose_digest, Report};
@@ -99,23 +98,22 @@ impl PlayedSensors {
     /// [`restart`](Self::restart): `exact` over `layout` reading counts, nothing played,
     /// failed (so nothing is taken in before a restart). Cannot fail.
     pub fn init<'a>(slot: &'a mut MaybeUninit<Self>, layout: &Layout) -> &'a mut Self {
-        let p = slot.as_mut_ptr();
-        // SAFETY: every field written once through a raw pointer into the slot, the
-        // odometry in place by its own `init`; the slot is then initialised.
-        unsafe {
-            let odometry = &mut *(addr_of_mut!((*p).odometry) as *mut MaybeUninit<Odometry>);
-            Odometry::init(odometry, layout);
-            addr_of_mut!((*p).decoder).write(Decoder::Counts(SampleDecoder::new()));
-            addr_of_mut!((*p).period_ns).write(1000);
-            addr_of_mut!((*p).next_update_ns).write(1000);
-            addr_of_mut!((*p).counts).write([0; MAX_ENCODERS]);
-            addr_of_mut!((*p).pending).write(None);
-            addr_of_mut!((*p).offset).write(0);
-            addr_of_mut!((*p).failed).write(true);
-            addr_of_mut!((*p).updates).write(0);
-            addr_of_mut!((*p).at_start).write(true);
-            slot.assume_init_mut()
-        }
+        robot_math::init_in_place!(
+            slot,
+            PlayedSensors {
+                decoder: Decoder::Counts(SampleDecoder::new()),
+                period_ns: 1000,
+                next_update_ns: 1000,
+                counts: [0; MAX_ENCODERS],
+                pending: None,
+                offset: 0,
+                failed: true,
+                updates: 0,
+                at_start: true,
+            } in_place {
+                odometry: Odometry::init(layout),
+            }
+        )
     }
 
     /// Start again in place, as [`new`](Self::new) would have started. On `Err` (a method

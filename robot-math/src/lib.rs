@@ -16,6 +16,7 @@ pub mod carriage;
 pub mod drive;
 pub mod exact;
 pub mod fixed;
+pub mod in_place;
 pub mod lut;
 pub mod motor;
 pub mod odometry;

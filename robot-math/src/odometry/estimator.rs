@@ -1,7 +1,6 @@
 //! [`Odometry`]: one estimator over a [`Layout`], any [`Method`], either [`SensorKind`].
 
 use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
 
 use super::{Layout, Method, SensorKind, Unsupported};
 use crate::carriage::CarriageExact;
@@ -117,37 +116,30 @@ impl Odometry {
     /// through the stack), as a start for [`restart`](Self::restart): `exact` over `layout`
     /// at the origin at time 0, every count 0, the counters' way. Cannot fail.
     pub fn init<'a>(slot: &'a mut MaybeUninit<Odometry>, layout: &Layout) -> &'a mut Odometry {
-        let o = slot.as_mut_ptr();
-        // SAFETY: every field is written once, through a raw pointer into the slot (no
-        // reference to the uninitialised whole is made); the slot is then initialised.
-        // Arrays are written element by element, each a few words, so no whole array is
-        // built on the stack first.
-        unsafe {
-            addr_of_mut!((*o).layout).write(*layout);
-            addr_of_mut!((*o).method).write(Method::Exact);
-            addr_of_mut!((*o).sensors).write(SensorKind::Counts);
-            let trackers = addr_of_mut!((*o).trackers) as *mut TickTracker;
-            let recent = addr_of_mut!((*o).recent) as *mut RecentTicks;
-            for j in 0..MAX_ENCODERS {
-                trackers.add(j).write(TickTracker::starting(0, 0));
-                recent.add(j).write(RecentTicks::default());
+        crate::init_in_place!(
+            slot,
+            Odometry {
+                layout: *layout,
+                method: Method::Exact,
+                sensors: SensorKind::Counts,
+                trackers: [TickTracker::starting(0, 0); MAX_ENCODERS],
+                recent: [RecentTicks::default(); MAX_ENCODERS],
+                keep_edges: false,
+                counts: [0; MAX_ENCODERS],
+                positions: [0; MAX_ENCODERS],
+                abs: 0,
+                pose: FixedPose::default(),
+                lut_origin: (
+                    crate::lut::DEFAULT_ORIGIN_LSB,
+                    crate::lut::DEFAULT_ORIGIN_LSB,
+                ),
+                state: State::Exact(ExactState::Body(ExactOdometry::new(
+                    *layout.exact(),
+                    FixedPose::default(),
+                    &[0; MAX_ENCODERS],
+                ))),
             }
-            addr_of_mut!((*o).keep_edges).write(false);
-            addr_of_mut!((*o).counts).write([0; MAX_ENCODERS]);
-            addr_of_mut!((*o).positions).write([0; MAX_ENCODERS]);
-            addr_of_mut!((*o).abs).write(0);
-            addr_of_mut!((*o).pose).write(FixedPose::default());
-            addr_of_mut!((*o).lut_origin).write((
-                crate::lut::DEFAULT_ORIGIN_LSB,
-                crate::lut::DEFAULT_ORIGIN_LSB,
-            ));
-            addr_of_mut!((*o).state).write(State::Exact(ExactState::Body(ExactOdometry::new(
-                *layout.exact(),
-                FixedPose::default(),
-                &[0; MAX_ENCODERS],
-            ))));
-            slot.assume_init_mut()
-        }
+        )
     }
 
     /// Start again, in place, as [`new`](Self::new) would have started: `method` over
