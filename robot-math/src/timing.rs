@@ -142,19 +142,28 @@ impl TimingOdometry {
         start: Pose2,
     ) -> Result<Self, GeometryError> {
         let solver = WheelSolver::new(wheels)?;
-        Ok(Self::new(solver, metres_per_count, start).with_tracked_point(wheels[0].x, wheels[0].y))
+        // Changed in place, not by `with_tracked_point`: each pass of the 0.9 KB value
+        // through a builder is a copy on a board's stack (the slave with its baselines).
+        let mut t = Self::new(solver, metres_per_count, start);
+        t.track_point(wheels[0].x, wheels[0].y);
+        Ok(t)
     }
 
     /// Integrate the body point `(x, y)` (body frame, metres) instead of the origin, as the
     /// paper does with wheel A (eq. 24). Call before the first tick or update. The pose
     /// returned is still the body origin's.
     pub fn with_tracked_point(mut self, x: f64, y: f64) -> Self {
+        self.track_point(x, y);
+        self
+    }
+
+    /// [`with_tracked_point`](Self::with_tracked_point), in place.
+    pub fn track_point(&mut self, x: f64, y: f64) {
         let o = self.pose();
         let (s, c) = (crate::trig::sin(o.theta), crate::trig::cos(o.theta));
         self.r_body = (x, y);
         self.px = o.x + c * x - s * y;
         self.py = o.y + s * x + c * y;
-        self
     }
 
     /// A tick of `encoder` at `t_ns` (step = ±1). Integrates up to `t_ns` first with the

@@ -199,23 +199,24 @@ impl Odometry {
             crate::lut::DEFAULT_ORIGIN_LSB,
             crate::lut::DEFAULT_ORIGIN_LSB,
         );
-        let built = self.build(method, start, t_ns);
-        let (method, state, result) = match built {
-            Ok(state) => (method, state, Ok(())),
-            Err(e) => {
-                // `exact` over a checked layout: the carriage's bounds are `Layout`'s.
-                let state = self.build(Method::Exact, start, t_ns).unwrap_or_else(|_| {
-                    State::Exact(ExactState::Body(ExactOdometry::new(
-                        *self.layout.exact(),
-                        start,
-                        &self.positions,
-                    )))
-                });
-                (Method::Exact, state, Err(e))
+        let result = self.start(method, start, t_ns);
+        if result.is_err() {
+            // `exact` over a checked layout cannot fail (the carriage's bounds are `Layout`'s);
+            // were it to, the wheels fixed to the body still run.
+            if self.start(Method::Exact, start, t_ns).is_err() {
+                self.state = State::Exact(ExactState::Body(ExactOdometry::new(
+                    *self.layout.exact(),
+                    start,
+                    &self.positions,
+                )));
+                self.state_changed();
             }
+        }
+        self.method = if result.is_ok() {
+            method
+        } else {
+            Method::Exact
         };
-        self.method = method;
-        self.set_state(state);
         result
     }
 
@@ -227,55 +228,58 @@ impl Odometry {
         self.lut_origin = origin_lsb;
         if self.method == Method::Lut {
             // `lut` ignores time; the same method on the same layout cannot fail now.
-            if let Ok(s) = self.build(Method::Lut, self.pose, 0) {
-                self.set_state(s);
-            }
+            let _ = self.start(Method::Lut, self.pose, 0);
         }
         self
     }
 
-    /// Run `state` from now on. Only `exact` lets ticks wait for the update: the float
+    /// The state was replaced. Only `exact` lets ticks wait for the update: the float
     /// methods take each tick as it comes (their state after a tick depends on every tick).
-    fn set_state(&mut self, state: State) {
-        self.keep_edges = state.is_exact() && self.sensors == SensorKind::Ticks;
-        self.state = state;
+    fn state_changed(&mut self) {
+        self.keep_edges = self.state.is_exact() && self.sensors == SensorKind::Ticks;
     }
 
-    /// The state of `method` starting at `body` with the current readings at `t_ns`.
-    fn build(&self, method: Method, body: FixedPose, t_ns: u64) -> Result<State, Unsupported> {
+    /// Run `method` from `body` with the current readings at `t_ns`; on `Err` the running
+    /// state is kept. Each method's state is built by a function of its own, out of line, so
+    /// a board's stack holds one method's temporaries at a time, not all of them at once.
+    fn start(&mut self, method: Method, body: FixedPose, t_ns: u64) -> Result<(), Unsupported> {
+        match method {
+            Method::Exact => self.start_exact(body, t_ns),
+            #[cfg(any(test, feature = "float-methods"))]
+            Method::Arc => self.start_float(t_ns, |o| FloatState::arc(o, body)),
+            #[cfg(any(test, feature = "float-methods"))]
+            Method::Lut => self.start_float(t_ns, |o| FloatState::lut(o, body)),
+            #[cfg(any(test, feature = "float-methods"))]
+            Method::Timing => self.start_float(t_ns, |o| FloatState::timing(o, body)),
+            #[cfg(not(any(test, feature = "float-methods")))]
+            Method::Arc | Method::Lut | Method::Timing => Err(Unsupported::FloatMethodsNotBuilt),
+        }
+    }
+
+    #[inline(never)]
+    fn start_exact(&mut self, body: FixedPose, t_ns: u64) -> Result<(), Unsupported> {
         let layout = &self.layout;
         let n = layout.encoders();
-        Ok(match method {
-            Method::Exact => {
-                let q = self.positions_q16(t_ns);
-                let exact = *layout.exact();
-                State::Exact(match (layout.carriage(), layout.abs()) {
-                    (Some(c), Some(a)) => ExactState::Carriage(
-                        CarriageExact::from_params(
-                            exact,
-                            c.trail_q40,
-                            a.bits,
-                            body,
-                            [q[0], q[1]],
-                            self.abs,
-                        )
-                        // `Layout` guarantees two encoders and 1..=16 bits.
-                        .ok_or(Unsupported::Geometry(GeometryError::WheelCount(n)))?,
-                    ),
-                    _ => ExactState::Body(ExactOdometry::new(exact, body, &q)),
-                })
-            }
-            #[cfg(any(test, feature = "float-methods"))]
-            Method::Arc => State::Float(FloatState::arc(self, body)?),
-            #[cfg(any(test, feature = "float-methods"))]
-            Method::Lut => State::Float(FloatState::lut(self, body)?),
-            #[cfg(any(test, feature = "float-methods"))]
-            Method::Timing => State::Float(FloatState::timing(self, body, t_ns)?),
-            #[cfg(not(any(test, feature = "float-methods")))]
-            Method::Arc | Method::Lut | Method::Timing => {
-                return Err(Unsupported::FloatMethodsNotBuilt)
-            }
-        })
+        let q = self.positions_q16(t_ns);
+        let exact = *layout.exact();
+        let state = match (layout.carriage(), layout.abs()) {
+            (Some(c), Some(a)) => ExactState::Carriage(
+                CarriageExact::from_params(
+                    exact,
+                    c.trail_q40,
+                    a.bits,
+                    body,
+                    [q[0], q[1]],
+                    self.abs,
+                )
+                // `Layout` guarantees two encoders and 1..=16 bits.
+                .ok_or(Unsupported::Geometry(GeometryError::WheelCount(n)))?,
+            ),
+            _ => ExactState::Body(ExactOdometry::new(exact, body, &q)),
+        };
+        self.state = State::Exact(state);
+        self.state_changed();
+        Ok(())
     }
 
     /// What `exact` sees of each wheel, Q16 counts: interpolated between ticks at `t_ns` with
@@ -439,9 +443,7 @@ impl Odometry {
             return;
         }
         // The same method on the same layout cannot fail: it is running.
-        if let Ok(s) = self.build(self.method, pose, t_ns) {
-            self.set_state(s);
-        }
+        let _ = self.start(self.method, pose, t_ns);
         self.pose = pose;
     }
 
@@ -472,8 +474,7 @@ impl Odometry {
             return Ok(());
         }
         let here = self.update(t_ns);
-        let state = self.build(method, here, t_ns)?;
-        self.set_state(state);
+        self.start(method, here, t_ns)?;
         self.method = method;
         Ok(())
     }

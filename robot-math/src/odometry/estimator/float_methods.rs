@@ -91,23 +91,26 @@ impl FloatState {
         }))
     }
 
-    /// Seed 000's `timing`, integrating from `t_ns` (it needs every tick's time stamp).
-    pub(super) fn timing(
-        odo: &Odometry,
-        body: FixedPose,
-        t_ns: u64,
-    ) -> Result<FloatState, Unsupported> {
+    /// Seed 000's `timing` (it needs every tick's time stamp); its integration starts at
+    /// [`started`](Self::started).
+    pub(super) fn timing(odo: &Odometry, body: FixedPose) -> Result<FloatState, Unsupported> {
         if odo.sensors != SensorKind::Ticks {
             return Err(Unsupported::TimingNeedsTicks);
         }
         let n = odo.layout.encoders();
         let (_, start) = odo.float_start(body)?;
         let k = &odo.layout.metres_per_count()[..n];
-        let mut t = TimingOdometry::from_wheels(&odo.layout.wheels()[..n], k, start)
-            .map_err(Unsupported::Geometry)?;
-        // Its integration starts here: every wheel taken to sit on an edge now.
-        t.update(t_ns);
-        Ok(FloatState::Timing(t))
+        TimingOdometry::from_wheels(&odo.layout.wheels()[..n], k, start)
+            .map(FloatState::Timing)
+            .map_err(Unsupported::Geometry)
+    }
+
+    /// In place, once started at `t_ns`: `timing`'s integration starts here, every wheel
+    /// taken to sit on an edge now.
+    fn started(&mut self, t_ns: u64) {
+        if let FloatState::Timing(t) = self {
+            t.update(t_ns);
+        }
     }
 
     /// A tick already counted by [`Odometry::tick`], for the methods whose input is ticks.
@@ -126,6 +129,23 @@ impl FloatState {
 }
 
 impl Odometry {
+    /// Run the float method `build` makes; on `Err` the running state is kept. Out of line,
+    /// and one copy per method: a board with the baselines holds one method's temporaries at
+    /// a time on its stack.
+    #[inline(never)]
+    pub(super) fn start_float(
+        &mut self,
+        t_ns: u64,
+        build: impl FnOnce(&Odometry) -> Result<FloatState, Unsupported>,
+    ) -> Result<(), Unsupported> {
+        self.state = State::Float(build(self)?);
+        if let State::Float(f) = &mut self.state {
+            f.started(t_ns);
+        }
+        self.state_changed();
+        Ok(())
+    }
+
     /// A float method's update: its frame's pose (the carriage's with a carriage), then the
     /// body's.
     pub(super) fn update_float(&mut self, t_ns: u64) -> FixedPose {
