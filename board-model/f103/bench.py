@@ -3,29 +3,57 @@ scripts/board-model."""
 
 import argparse
 import os
+import signal
+import subprocess
 import sys
 import time
 
 from .core import Chip
+from . import edges
 from .elf import Elf
+from .pty_link import PtyLink, run_paced
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 IMAGES = os.path.join(ROOT, "target", "thumbv7m-none-eabi", "release")
 
 
 class Bench:
-    def __init__(self, slave_elf=None, master_elf=None, slice_us=10.0, cpi=1.0, log=None,
-                 boards=("slave", "master")):
+    def __init__(
+        self,
+        slave_elf=None,
+        master_elf=None,
+        slice_us=10.0,
+        cpi=1.0,
+        log=None,
+        boards=("slave", "master"),
+    ):
         self.boards = {}
-        paths = {"slave": slave_elf or os.path.join(IMAGES, "firmware-slave"),
-                 "master": master_elf or os.path.join(IMAGES, "firmware-master")}
+        paths = {
+            "slave": slave_elf or os.path.join(IMAGES, "firmware-slave"),
+            "master": master_elf or os.path.join(IMAGES, "firmware-master"),
+        }
         for i, name in enumerate(boards):
-            self.boards[name] = Chip(name, Elf(paths[name]), uid=bytes([0x30 + i]) * 12, cpi=cpi,
-                                     log=log)
+            self.boards[name] = Chip(
+                name, Elf(paths[name]), uid=bytes([0x30 + i]) * 12, cpi=cpi, log=log
+            )
         self.slice = int(slice_us * Chip.TICK_HZ / 1e6)
         self.now = 0
         if "slave" in self.boards and "master" in self.boards:
             self.wire()
+        self.rest_encoders()
+
+    def rest_encoders(self):
+        """The encoders on timer inputs are wired from power-on and stand still, both lines
+        high (what the pull-ups give with open-collector outputs released): the slave's
+        measuring wheels on PA0/PA1 (TIM2) and PA8/PA9 (TIM1), the master's motor 2 encoder on
+        PA8/PA9 (TIM1), docs/pinmap.md. Left floating, the model reads an input as 0 and the
+        pull-ups the firmware turns on after starting the timers in encoder mode would make a
+        rising edge on each line: two counts of motion that no wheel made. `--drive` starts
+        from these levels."""
+        rest = {"slave": (0, 1, 8, 9), "master": (8, 9)}
+        for name, chip in self.boards.items():
+            for pin in rest[name]:
+                chip.gpio[0].drive(pin, 1)
 
     def wire(self):
         """The four SPI wires (docs/pinmap.md, "Between the boards"): the master's SPI1 clocks
@@ -61,18 +89,39 @@ def fmt_fault(chip, f):
     return s
 
 
+def load_line(chip):
+    sim_s = chip.now / Chip.TICK_HZ
+    load = chip.busy_ticks / max(1, chip.now)
+    return (
+        f"{chip.instructions / max(sim_s, 1e-9) / 1e6:.2f} M instructions per simulated s "
+        f"({100 * load:.1f} % busy at CPI {chip.cpi}); {chip.exceptions} exceptions, "
+        f"{chip.sleeps} sleeps"
+    )
+
+
+def speed_line(sim_ticks, wall):
+    ms = sim_ticks / Chip.TICK_HZ * 1e3
+    return (
+        f"{ms:.1f} simulated ms in {wall:.2f} s wall = {ms / wall:.1f} simulated ms per "
+        f"wall s ({ms / 1e3 / wall:.3f}x real time)"
+    )
+
+
 def report(chip, sim_ticks, wall):
     ok = True
-    ms = sim_ticks / Chip.TICK_HZ * 1e3
     lines = [f"== {chip.name}: {os.path.relpath(chip.elf.path, ROOT)}"]
     idle = chip.first_idle
-    lines.append(f"  reached idle      {'yes, at %.4f ms (executor in WFE)' % (idle / Chip.TICK_HZ * 1e3) if idle is not None else 'no'}")
+    lines.append(
+        f"  reached idle      {'yes, at %.4f ms (executor in WFE)' % (idle / Chip.TICK_HZ * 1e3) if idle is not None else 'no'}"
+    )
     if idle is None:
         ok = False
     if chip.panics:
         p = chip.panics[0]
         where = chip.elf.where(p["caller"])
-        lines.append(f"  PANIC             at {p['t'] / Chip.TICK_HZ * 1e3:.4f} ms: {chip.elf.name_of(p['caller'])} called {p['entry']}, sp {p['sp']:#010x} ({0x20005000 - p['sp']} B below the stack top)")
+        lines.append(
+            f"  PANIC             at {p['t'] / Chip.TICK_HZ * 1e3:.4f} ms: {chip.elf.name_of(p['caller'])} called {p['entry']}, sp {p['sp']:#010x} ({0x20005000 - p['sp']} B below the stack top)"
+        )
         for w in where[:5]:
             lines.append(f"                    at {w}")
         ok = False
@@ -85,10 +134,14 @@ def report(chip, sim_ticks, wall):
     lo = chip.elf.sym("_stack_end")
     deepest = chip.sp_top - chip.sp_min if chip.sp_min else 0
     if over:
-        lines.append(f"  stack             OVERFLOW: all {room} B of room between _stack_end {lo:#x} and {chip.sp_top:#x} overwritten; deepest SP seen {chip.sp_min:#x} = {deepest} B deep ({deepest - room} B into the statics)")
+        lines.append(
+            f"  stack             OVERFLOW: all {room} B of room between _stack_end {lo:#x} and {chip.sp_top:#x} overwritten; deepest SP seen {chip.sp_min:#x} = {deepest} B deep ({deepest - room} B into the statics)"
+        )
         ok = False
     else:
-        lines.append(f"  stack             used {used} B of {room} B room ({100 * used / room:.0f} %), {room - used} B free (deepest SP sampled {deepest} B)")
+        lines.append(
+            f"  stack             used {used} B of {room} B room ({100 * used / room:.0f} %), {room - used} B free (deepest SP sampled {deepest} B)"
+        )
     dh = chip.default_handler_lines()
     # A line left enabled on DefaultHandler fails the board. One enabled only during
     # `embassy_stm32::init`, and masked before anything could set its pending bit (its EXTI
@@ -97,15 +150,29 @@ def report(chip, sim_ticks, wall):
     if left:
         ok = False
         for n, name in left:
-            lines.append(f"  DEFAULT HANDLER   IRQ {n} {name} enabled with vector DefaultHandler (an endless loop)")
+            lines.append(
+                f"  DEFAULT HANDLER   IRQ {n} {name} enabled with vector DefaultHandler (an endless loop)"
+            )
     masked = [f"{n} {name}" for n, name, en in dh if not en]
     if masked:
-        lines.append("  masked at init    " + ", ".join(masked) + " (on DefaultHandler: enabled by embassy's init, masked by the board)")
+        lines.append(
+            "  masked at init    "
+            + ", ".join(masked)
+            + " (on DefaultHandler: enabled by embassy's init, masked by the board)"
+        )
     if not dh:
-        lines.append("  NVIC lines        " + (", ".join(f"{n} {__import__('f103.nvic', fromlist=['x']).IRQ_NAMES[n]}" for n in sorted(chip.nvic.ever_enabled)) or "none") + " enabled; none on DefaultHandler")
-    sim_s = sim_ticks / Chip.TICK_HZ
-    load = chip.busy_ticks / max(1, chip.now)
-    lines.append(f"  load              {chip.instructions / max(sim_s, 1e-9) / 1e6:.2f} M instructions per simulated s ({100 * load:.1f} % busy at CPI {chip.cpi}); {chip.exceptions} exceptions, {chip.sleeps} sleeps")
+        lines.append(
+            "  NVIC lines        "
+            + (
+                ", ".join(
+                    f"{n} {__import__('f103.nvic', fromlist=['x']).IRQ_NAMES[n]}"
+                    for n in sorted(chip.nvic.ever_enabled)
+                )
+                or "none"
+            )
+            + " enabled; none on DefaultHandler"
+        )
+    lines.append(f"  load              {load_line(chip)}")
     for m in chip.messages[:12]:
         lines.append("  log " + m)
     if len(chip.messages) > 12:
@@ -114,9 +181,14 @@ def report(chip, sim_ticks, wall):
 
 
 def cmd_boot(args):
-    bench = Bench(args.slave, args.master, slice_us=args.slice_us, cpi=args.cpi,
-                  log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None,
-                  boards=args.boards)
+    bench = Bench(
+        args.slave,
+        args.master,
+        slice_us=args.slice_us,
+        cpi=args.cpi,
+        log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None,
+        boards=args.boards,
+    )
     ticks = int(args.ms * 1e-3 * Chip.TICK_HZ)
     t0 = time.perf_counter()
     bench.run(ticks, stop_on_halt=True)
@@ -127,74 +199,137 @@ def cmd_boot(args):
         ok, text = report(chip, sim, wall)
         all_ok &= ok
         print(text)
-    print(f"== speed: {sim / Chip.TICK_HZ * 1e3:.1f} simulated ms in {wall:.2f} s wall = "
-          f"{sim / Chip.TICK_HZ * 1e3 / wall:.1f} simulated ms per wall s "
-          f"({sim / Chip.TICK_HZ / wall:.3f}x real time), slice {args.slice_us} us")
+    print(f"== speed: {speed_line(sim, wall)}, slice {args.slice_us} us")
     print("== result:", "OK" if all_ok else "FAILED")
     return 0 if all_ok else 1
+
+
+def _bench_for(args, boards=("slave", "master")):
+    return Bench(
+        args.slave,
+        args.master,
+        slice_us=args.slice_us,
+        cpi=args.cpi,
+        log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None,
+        boards=boards,
+    )
+
+
+def _stop_flag():
+    """A list that SIGINT and SIGTERM append to. Only a flag: an exception raised by a signal
+    handler inside one of unicorn's callbacks would be lost by ctypes (and a background job
+    ignores SIGINT, so `kill PID` must end a serve too)."""
+    stop = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.append(1))
+    return stop
+
+
+def _tell_halts(bench):
+    for b in bench.boards.values():
+        if b.halted and not getattr(b, "_halt_told", False):
+            b._halt_told = True
+            print(report(b, bench.now, 0)[1], file=sys.stderr, flush=True)
+
+
+def _summary(bench, sim_ticks, wall):
+    master = bench.boards["master"]
+    print(
+        f"board model: {sim_ticks / Chip.TICK_HZ:.3f} s simulated in {wall:.3f} s; USART1 "
+        f"{master.usart1.bytes_out} bytes out, {master.usart1.bytes_in} in; SPI1 "
+        f"{master.spi1.bytes} bytes; " + speed_line(sim_ticks, wall),
+        file=sys.stderr,
+    )
+    for b in bench.boards.values():
+        print(f"board model: {b.name} {load_line(b)}", file=sys.stderr)
 
 
 def cmd_serve(args):
     """The master's USART1 on a pseudo-terminal, in real time (imitates `host-bench
     virtual-board`: the first line is `port: /dev/pts/N`)."""
-    import select
-    import tty
     boards = ("master",) if args.no_slave else ("slave", "master")
-    bench = Bench(args.slave, args.master, slice_us=args.slice_us, cpi=args.cpi,
-                  log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None,
-                  boards=boards)
-    master = bench.boards["master"]
-    pty_m, pty_s = os.openpty()
-    tty.setraw(pty_s)
-    tty.setraw(pty_m)
-    os.set_blocking(pty_m, False)
-    print(f"port: {os.ttyname(pty_s)}", flush=True)
-    print(f"board model serving ({'+'.join(boards)}, USART1 at the baud the firmware sets); "
-          "Ctrl-C ends it", file=sys.stderr, flush=True)
-    out = bytearray()
-    master.usart1.tx_sink = out.append
-    step = int(args.step_ms * 1e-3 * Chip.TICK_HZ)
-    t0 = time.perf_counter()
+    bench = _bench_for(args, boards)
+    drivers = _drive(bench, args)
+    link = PtyLink(bench.boards["master"].usart1)
+    print(f"port: {link.port}", flush=True)
+    print(
+        f"board model serving ({'+'.join(boards)}, USART1 at the baud the firmware sets); "
+        "Ctrl-C ends it",
+        file=sys.stderr,
+        flush=True,
+    )
+    stop = _stop_flag()
     end = int(args.ms * 1e-3 * Chip.TICK_HZ) if args.ms else None
-    lag_reported = 0
-    try:
-        while end is None or bench.now < end:
-            # input from the host: what arrived in the pty since the last step
-            try:
-                r, _, _ = select.select([pty_m], [], [], 0)
-                if r:
-                    data = os.read(pty_m, 4096)
-                    if data:
-                        master.usart1.receive(data)
-            except (BlockingIOError, OSError):
-                pass
-            bench.run(step, stop_on_halt=False)
-            if out:
-                try:
-                    n = os.write(pty_m, bytes(out))
-                    del out[:n]
-                except (BlockingIOError, OSError):
-                    if len(out) > 1 << 16:
-                        del out[:len(out) - (1 << 16)]       # a host that does not read
-            # pace to the wall clock
-            ahead = bench.now / Chip.TICK_HZ - (time.perf_counter() - t0)
-            if ahead > 0:
-                time.sleep(ahead)
-            elif ahead < -1.0 and time.perf_counter() - lag_reported > 10:
-                lag_reported = time.perf_counter()
-                print(f"board model: {-ahead:.1f} s behind real time", file=sys.stderr, flush=True)
-            for b in bench.boards.values():
-                if b.halted and not getattr(b, "_halt_told", False):
-                    b._halt_told = True
-                    ok, text = report(b, bench.now, 0)
-                    print(text, file=sys.stderr, flush=True)
-    except KeyboardInterrupt:
-        pass
-    wall = time.perf_counter() - t0
-    print(f"board model: {bench.now / Chip.TICK_HZ:.3f} s simulated in {wall:.3f} s; USART1 "
-          f"{master.usart1.bytes_out} bytes out, {master.usart1.bytes_in} in; SPI1 "
-          f"{master.spi1.bytes} bytes", file=sys.stderr)
+    wall = run_paced(
+        bench,
+        link,
+        int(args.step_ms * 1e-3 * Chip.TICK_HZ),
+        lambda: stop or (end is not None and bench.now >= end),
+        lambda: _tell_halts(bench),
+    )
+    _summary(bench, bench.now, wall)
+    for d in drivers:
+        s = bench.boards["slave"]
+        print(
+            f"board model: edges applied {d.applied} of {len(d.rows)}; slave TIM2 CNT "
+            f"{s.tim2.cnt}, TIM1 CNT {s.tim1.cnt}, EXTI edges {s.exti.edges}",
+            file=sys.stderr,
+        )
     return 0
+
+
+def _drive(bench, args):
+    """The slave's encoder pins from `--drive` specs and `--edges` files (edges.py)."""
+    if not (args.drive or args.edges) or "slave" not in bench.boards:
+        return []
+    slave = bench.boards["slave"]
+    rows, hold = [], {}
+    for spec in args.drive or ():
+        r, h = edges.drive_spec(spec)
+        rows += r
+        hold.update(h)
+    for path in args.edges or ():
+        rows += edges.load(path)
+    return [edges.EdgeDriver(slave, rows, hold)]
+
+
+def cmd_play_check(args):
+    """Boot both boards, serve USART1 on a pty and run `host-bench play` against it; exit with
+    play's status. The model's speed is measured over the play alone."""
+    bench = _bench_for(args)
+    link = PtyLink(bench.boards["master"].usart1)
+    bench.run(int(args.boot_ms * 1e-3 * Chip.TICK_HZ))  # boot before the host knocks
+    cmd = [
+        args.host_bench,
+        "play",
+        "--port",
+        link.port,
+        "--ticks",
+        args.ticks,
+        "--sensor",
+        args.sensor,
+    ] + args.play_args
+    print("board model: " + " ".join(cmd), file=sys.stderr, flush=True)
+    host = subprocess.Popen(cmd)
+    stop = _stop_flag()
+    start = bench.now
+    wall = run_paced(
+        bench,
+        link,
+        int(args.step_ms * 1e-3 * Chip.TICK_HZ),
+        lambda: stop or host.poll() is not None,
+        lambda: _tell_halts(bench),
+    )
+    if host.poll() is None:
+        host.terminate()
+    rc = host.wait()
+    link.close()
+    _summary(bench, bench.now - start, wall)
+    for b in bench.boards.values():
+        if b.halted or b.faults or b.panics:
+            print(report(b, bench.now, wall)[1], file=sys.stderr)
+            rc = rc or 1
+    return rc
 
 
 def main(argv=None):
@@ -202,7 +337,9 @@ def main(argv=None):
     sub = ap.add_subparsers(dest="cmd", required=True)
     b = sub.add_parser("boot", help="run both images from reset and report")
     b.add_argument("--ms", type=float, default=100.0, help="simulated time (default 100 ms)")
-    b.add_argument("--slave", help="slave ELF (default target/thumbv7m-none-eabi/release/firmware-slave)")
+    b.add_argument(
+        "--slave", help="slave ELF (default target/thumbv7m-none-eabi/release/firmware-slave)"
+    )
     b.add_argument("--master", help="master ELF")
     b.add_argument("--boards", nargs="+", default=["slave", "master"], choices=["slave", "master"])
     b.add_argument("--slice-us", type=float, default=10.0, help="lock-step slice (default 10 us)")
@@ -218,6 +355,33 @@ def main(argv=None):
     sv.add_argument("--step-ms", type=float, default=2.0, help="pty polling period, simulated")
     sv.add_argument("--cpi", type=float, default=1.0)
     sv.add_argument("-v", "--verbose", action="store_true")
+    sv.add_argument(
+        "--drive",
+        action="append",
+        metavar="A,B,START_S,COUNTS,RATE_HZ[,rev]",
+        help="quadrature edges on the slave's pins A, B (e.g. PA0,PA1,0.5,400,2000)",
+    )
+    sv.add_argument(
+        "--edges",
+        action="append",
+        metavar="FILE",
+        help="timed edges for the slave's pins, CSV t_us,pin,level",
+    )
     sv.set_defaults(fn=cmd_serve)
+    pc = sub.add_parser(
+        "play-check", help="serve, and run `host-bench play` against it; its exit status"
+    )
+    pc.add_argument("--ticks", required=True, help="tick stream (docs/tick-stream.md)")
+    pc.add_argument("--sensor", default="timestamps", choices=["timestamps", "counts"])
+    pc.add_argument("--host-bench", default=os.path.join(ROOT, "target", "debug", "host-bench"))
+    pc.add_argument("--slave", help="slave ELF")
+    pc.add_argument("--master", help="master ELF")
+    pc.add_argument("--boot-ms", type=float, default=20.0, help="run this long before play starts")
+    pc.add_argument("--slice-us", type=float, default=10.0)
+    pc.add_argument("--step-ms", type=float, default=2.0)
+    pc.add_argument("--cpi", type=float, default=1.0)
+    pc.add_argument("-v", "--verbose", action="store_true")
+    pc.add_argument("play_args", nargs="*", help="more of play's options, after --")
+    pc.set_defaults(fn=cmd_play_check)
     args = ap.parse_args(argv)
     return args.fn(args)

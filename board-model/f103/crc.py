@@ -1,7 +1,11 @@
 """CRC calculation unit (RM0008 §4): CRC-32, polynomial 0x04C11DB7, 32-bit words fed MSB
 first, no reflection, no final XOR; DR resets to 0xFFFFFFFF (CR.RESET); IDR is a free 8-bit
 register. Byte and halfword writes to DR are taken as a full word (as the hardware does: DR is
-a 32-bit register and the calculation always uses the whole word)."""
+a 32-bit register and the calculation always uses the whole word).
+
+Both images run their CRC-32 on the unit, a word per DR write (tens of thousands a second
+while the boards talk), so a word is computed with four table look-ups ("slicing by 4":
+TABLES[k][b] is byte b followed by k zero bytes) instead of 32 shift steps."""
 
 from .periph import Peripheral
 
@@ -9,26 +13,33 @@ POLY = 0x04C11DB7
 
 
 def crc32_word(crc, word):
+    """The definition: 32 steps of the shift register (the reference for the tables)."""
     crc ^= word & 0xFFFFFFFF
     for _ in range(32):
         crc = ((crc << 1) ^ POLY) & 0xFFFFFFFF if crc & 0x80000000 else (crc << 1) & 0xFFFFFFFF
     return crc
 
 
-# table-driven version of the same (8 bits at a time)
-_TABLE = []
-for _i in range(256):
-    _c = _i << 24
-    for _ in range(8):
-        _c = ((_c << 1) ^ POLY) & 0xFFFFFFFF if _c & 0x80000000 else (_c << 1) & 0xFFFFFFFF
-    _TABLE.append(_c)
+def _tables():
+    t0 = []  # one byte through 8 steps ...
+    for b in range(256):
+        c = b << 24
+        for _ in range(8):
+            c = ((c << 1) ^ POLY) & 0xFFFFFFFF if c & 0x80000000 else (c << 1) & 0xFFFFFFFF
+        t0.append(c)
+    tables = [t0]
+    for _ in range(3):  # ... then 8 more zero bits each
+        prev = tables[-1]
+        tables.append([((prev[b] << 8) & 0xFFFFFFFF) ^ t0[prev[b] >> 24] for b in range(256)])
+    return tables
+
+
+_T0, _T1, _T2, _T3 = _tables()
 
 
 def crc32_word_fast(crc, word):
-    crc ^= word & 0xFFFFFFFF
-    for _ in range(4):
-        crc = ((crc << 8) & 0xFFFFFFFF) ^ _TABLE[crc >> 24]
-    return crc
+    x = (crc ^ word) & 0xFFFFFFFF
+    return _T3[x >> 24] ^ _T2[(x >> 16) & 0xFF] ^ _T1[(x >> 8) & 0xFF] ^ _T0[x & 0xFF]
 
 
 class Crc(Peripheral):

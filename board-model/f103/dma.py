@@ -29,7 +29,7 @@ class Channel:
 
 class Dma(Peripheral):
     name = "DMA1"
-    IRQ_BASE = 11                        # DMA1_Channel1 is IRQ 11 (Table 63)
+    IRQ_BASE = 11  # DMA1_Channel1 is IRQ 11 (Table 63)
 
     def __init__(self, chip, base):
         self.sources = {n: [] for n in range(1, 8)}
@@ -41,7 +41,7 @@ class Dma(Peripheral):
         self.ch = {n: Channel(n) for n in range(1, 8)}
         self.isr = 0
         self.transfers = 0
-        self.active = []                       # enabled channels, for kick()
+        self.active = []  # enabled channels, for kick()
         self._levels = [False] * 8
 
     def connect(self, n, periph, key):
@@ -81,13 +81,13 @@ class Dma(Peripheral):
         psize = SIZES[(c.ccr >> 8) & 3]
         msize = SIZES[(c.ccr >> 10) & 3]
         try:
-            if c.ccr & (1 << 4):                 # memory -> peripheral
+            if c.ccr & (1 << 4):  # memory -> peripheral
                 v = chip.bus_read(c.m, msize)
                 chip.bus_write(c.p, psize, v & ((1 << (8 * psize)) - 1))
             else:
                 v = chip.bus_read(c.p, psize)
                 chip.bus_write(c.m, msize, v & ((1 << (8 * msize)) - 1))
-        except Exception as e:                   # bus error (§13.3.5)
+        except Exception as e:  # bus error (§13.3.5)
             chip.log(f"DMA1 channel {c.n}: transfer error ({e}) at p={c.p:#x} m={c.m:#x}")
             self._flag(c.n, 8)
             c.ccr &= ~1
@@ -105,11 +105,43 @@ class Dma(Peripheral):
             self._irq_ch(c.n)
         if c.remaining == 0:
             self._flag(c.n, 2)
-            if c.ccr & (1 << 5):                 # circular
+            if c.ccr & (1 << 5):  # circular
                 c.remaining = c.total
                 c.p = c.cpar
                 c.m = c.cmar
             self._irq_ch(c.n)
+
+    def advance(self, c, k):
+        """`k` items of a plain (non-circular, memory-incrementing, 8-bit) channel moved at
+        once by a peripheral's burst: the same count, address, flags and interrupt line as
+        `k` calls of `_transfer`."""
+        if not k:
+            return
+        before = c.remaining
+        c.remaining -= k
+        c.m += k
+        self.transfers += k
+        half = c.total // 2
+        if before > half >= c.remaining:
+            self._flag(c.n, 4)
+        if c.remaining == 0:
+            self._flag(c.n, 2)
+        self._irq_ch(c.n)
+
+    def plain_channels(self, periph, dr):
+        """(rx, tx): the enabled channels of `periph` that move bytes to or from its data
+        register `dr` plainly (PSIZE = MSIZE = 8 bits, MINC, no PINC, no CIRC, no MEM2MEM),
+        each None when there is none. A burst may move such bytes in one go."""
+        rx = tx = None
+        for c in self.active:
+            if c.p != dr or (c.ccr & 0x4FE0) != 0x80:
+                continue
+            if any(p is periph for p, _ in self.sources[c.n]):
+                if c.ccr & 0x10:
+                    tx = c
+                else:
+                    rx = c
+        return rx, tx
 
     def _flag(self, n, bits):
         self.isr |= (bits | 1) << (4 * (n - 1))
@@ -151,7 +183,7 @@ class Dma(Peripheral):
             for n in range(1, 8):
                 f = (v >> (4 * (n - 1))) & 0xF
                 if f & 1:
-                    f = 0xF                      # CGIF clears all four
+                    f = 0xF  # CGIF clears all four
                 self.isr &= ~(f << (4 * (n - 1)))
             self._irq()
             return
@@ -174,7 +206,7 @@ class Dma(Peripheral):
             self._irq()
             self.kick()
         elif r == 4:
-            if not c.ccr & 1:                    # writable only while disabled (§13.4.4)
+            if not c.ccr & 1:  # writable only while disabled (§13.4.4)
                 c.cndtr = value & mask & 0xFFFF
         elif r == 8:
             if not c.ccr & 1:

@@ -28,17 +28,20 @@ class Elf:
         self.segments = []  # (paddr, vaddr, bytes, memsz)
         for i in range(e_phnum):
             p_type, p_off, p_vaddr, p_paddr, p_filesz, p_memsz, _flags, _align = struct.unpack_from(
-                "<8I", data, e_phoff + i * e_phentsize)
+                "<8I", data, e_phoff + i * e_phentsize
+            )
             if p_type == PT_LOAD:
-                self.segments.append((p_paddr, p_vaddr, data[p_off:p_off + p_filesz], p_memsz))
+                self.segments.append((p_paddr, p_vaddr, data[p_off : p_off + p_filesz], p_memsz))
         self.symbols = {}
         self._funcs = []  # sorted (addr, name) of text symbols
         nm = _tool("llvm-nm")
         if nm:
-            out = subprocess.run([nm, "-n", "--defined-only", path], capture_output=True,
-                                 text=True).stdout
-            demangled = subprocess.run([nm, "-n", "-C", "--defined-only", path],
-                                       capture_output=True, text=True).stdout.splitlines()
+            out = subprocess.run(
+                [nm, "-n", "--defined-only", path], capture_output=True, text=True
+            ).stdout
+            demangled = subprocess.run(
+                [nm, "-n", "-C", "--defined-only", path], capture_output=True, text=True
+            ).stdout.splitlines()
             for line, dline in zip(out.splitlines(), demangled):
                 parts = line.split(None, 2)
                 dparts = dline.split(None, 2)
@@ -79,8 +82,11 @@ class Elf:
         tool = _tool("llvm-addr2line")
         if not tool:
             return []
-        out = subprocess.run([tool, "-f", "-C", "-i", "-e", self.path, hex(addr & ~1)],
-                             capture_output=True, text=True).stdout.splitlines()
+        out = subprocess.run(
+            [tool, "-f", "-C", "-i", "-e", self.path, hex(addr & ~1)],
+            capture_output=True,
+            text=True,
+        ).stdout.splitlines()
         res = []
         for fn, loc in zip(out[0::2], out[1::2]):
             loc = loc.split("/src/", 1)[-1] if "/src/" in loc else loc

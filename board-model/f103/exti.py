@@ -22,7 +22,7 @@ class Exti(Peripheral):
         self.ftsr = 0
         self.swier = 0
         self.pr = 0
-        self.edges = 0            # statistics
+        self.edges = 0  # statistics
 
     def edge(self, line, level):
         bit = 1 << line
@@ -38,8 +38,14 @@ class Exti(Peripheral):
             self.irq(irq, lvl)
 
     def read(self, off):
-        return {0x00: self.imr, 0x04: self.emr, 0x08: self.rtsr, 0x0C: self.ftsr,
-                0x10: self.swier, 0x14: self.pr}.get(off, 0)
+        return {
+            0x00: self.imr,
+            0x04: self.emr,
+            0x08: self.rtsr,
+            0x0C: self.ftsr,
+            0x10: self.swier,
+            0x14: self.pr,
+        }.get(off, 0)
 
     def write(self, off, value, mask):
         v = value & mask & 0x7FFFF

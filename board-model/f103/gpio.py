@@ -16,7 +16,7 @@ from .periph import Peripheral
 
 class Gpio(Peripheral):
     def __init__(self, chip, base, port):
-        self.port = port                    # 0 = A, 1 = B, ...
+        self.port = port  # 0 = A, 1 = B, ...
         self.name = "GPIO" + "ABCDEFG"[port]
         self.listeners = {}
         super().__init__(chip, base)
@@ -43,17 +43,17 @@ class Gpio(Peripheral):
         mode, cnf = c & 3, c >> 2
         if mode:
             drive = self.af[pin] if cnf & 2 else (self.odr >> pin) & 1
-            if cnf & 1 and drive:            # open drain released
+            if cnf & 1 and drive:  # open drain released
                 e = self.ext[pin]
                 return 1 if e is None else e
             return drive
         if cnf == 0:
-            return 0                         # analog
+            return 0  # analog
         if self.ext[pin] is not None:
             return self.ext[pin]
         if cnf == 2:
-            return (self.odr >> pin) & 1     # pull-up / pull-down
-        return 0                             # floating
+            return (self.odr >> pin) & 1  # pull-up / pull-down
+        return 0  # floating
 
     def _compute(self):
         v = 0
@@ -111,7 +111,7 @@ class Gpio(Peripheral):
             self.odr = self.merge(self.odr, value, mask) & 0xFFFF
         elif off == 0x10:
             v = value & mask
-            self.odr = (self.odr & ~(v >> 16)) | (v & 0xFFFF)   # set wins over reset
+            self.odr = (self.odr & ~(v >> 16)) | (v & 0xFFFF)  # set wins over reset
         elif off == 0x14:
             self.odr &= ~(value & mask & 0xFFFF)
         elif off == 0x18:
@@ -137,7 +137,7 @@ class Afio(Peripheral):
         if off == 0x00:
             return self.evcr
         if off == 0x04:
-            return self.mapr & ~(7 << 24)       # SWJ_CFG is write-only
+            return self.mapr & ~(7 << 24)  # SWJ_CFG is write-only
         if 0x08 <= off <= 0x14:
             return self.exticr[(off - 8) >> 2]
         if off == 0x1C:

@@ -10,20 +10,68 @@ lines re-pending on return) and C1.8 (DWT CYCCNT, DEMCR.TRCENA).
 
 from .periph import Peripheral
 
-NUM_IRQ = 43            # RM0008 Table 63 (medium density)
-PRIO_MASK = 0xF0        # 4 priority bits implemented (RM0008 §10.1.1)
+NUM_IRQ = 43  # RM0008 Table 63 (medium density)
+PRIO_MASK = 0xF0  # 4 priority bits implemented (RM0008 §10.1.1)
 
 RESET, NMI, HARDFAULT, MEMMANAGE, BUSFAULT, USAGEFAULT = 1, 2, 3, 4, 5, 6
 SVCALL, DEBUGMON, PENDSV, SYSTICK = 11, 12, 14, 15
-EXC_NAMES = {1: "Reset", 2: "NMI", 3: "HardFault", 4: "MemManage", 5: "BusFault",
-             6: "UsageFault", 11: "SVCall", 12: "DebugMonitor", 14: "PendSV", 15: "SysTick"}
-IRQ_NAMES = ["WWDG", "PVD", "TAMPER", "RTC", "FLASH", "RCC", "EXTI0", "EXTI1", "EXTI2", "EXTI3",
-             "EXTI4", "DMA1_CHANNEL1", "DMA1_CHANNEL2", "DMA1_CHANNEL3", "DMA1_CHANNEL4",
-             "DMA1_CHANNEL5", "DMA1_CHANNEL6", "DMA1_CHANNEL7", "ADC1_2", "USB_HP_CAN1_TX",
-             "USB_LP_CAN1_RX0", "CAN1_RX1", "CAN1_SCE", "EXTI9_5", "TIM1_BRK", "TIM1_UP",
-             "TIM1_TRG_COM", "TIM1_CC", "TIM2", "TIM3", "TIM4", "I2C1_EV", "I2C1_ER", "I2C2_EV",
-             "I2C2_ER", "SPI1", "SPI2", "USART1", "USART2", "USART3", "EXTI15_10", "RTCALARM",
-             "USBWAKEUP"]
+EXC_NAMES = {
+    1: "Reset",
+    2: "NMI",
+    3: "HardFault",
+    4: "MemManage",
+    5: "BusFault",
+    6: "UsageFault",
+    11: "SVCall",
+    12: "DebugMonitor",
+    14: "PendSV",
+    15: "SysTick",
+}
+IRQ_NAMES = [
+    "WWDG",
+    "PVD",
+    "TAMPER",
+    "RTC",
+    "FLASH",
+    "RCC",
+    "EXTI0",
+    "EXTI1",
+    "EXTI2",
+    "EXTI3",
+    "EXTI4",
+    "DMA1_CHANNEL1",
+    "DMA1_CHANNEL2",
+    "DMA1_CHANNEL3",
+    "DMA1_CHANNEL4",
+    "DMA1_CHANNEL5",
+    "DMA1_CHANNEL6",
+    "DMA1_CHANNEL7",
+    "ADC1_2",
+    "USB_HP_CAN1_TX",
+    "USB_LP_CAN1_RX0",
+    "CAN1_RX1",
+    "CAN1_SCE",
+    "EXTI9_5",
+    "TIM1_BRK",
+    "TIM1_UP",
+    "TIM1_TRG_COM",
+    "TIM1_CC",
+    "TIM2",
+    "TIM3",
+    "TIM4",
+    "I2C1_EV",
+    "I2C1_ER",
+    "I2C2_EV",
+    "I2C2_ER",
+    "SPI1",
+    "SPI2",
+    "USART1",
+    "USART2",
+    "USART3",
+    "EXTI15_10",
+    "RTCALARM",
+    "USBWAKEUP",
+]
 
 
 def exc_name(exc):
@@ -33,28 +81,29 @@ def exc_name(exc):
 class Scs(Peripheral):
     """Everything at 0xE0000000.. that the firmware touches. Exception state lives here; the
     mechanics of entry and return (stacking) are in core.Chip."""
+
     name = "PPB"
     size = 0x100000
 
     def reset(self):
         self.enabled = [False] * NUM_IRQ
         self.ipr = [0] * NUM_IRQ
-        self.shpr = [0] * 16           # by exception number 4..15
-        self.pending = set()           # exception numbers
-        self.active = []               # exception numbers, in order of activation
+        self.shpr = [0] * 16  # by exception number 4..15
+        self.pending = set()  # exception numbers
+        self.active = []  # exception numbers, in order of activation
         self.lines = [False] * NUM_IRQ
         self.ever_enabled = set()
         self.vtor = 0
         self.prigroup = 0
         self.scr = 0
-        self.ccr = 0x200               # STKALIGN=1 (PM0056 §4.4.8 reset value)
+        self.ccr = 0x200  # STKALIGN=1 (PM0056 §4.4.8 reset value)
         self.shcsr = 0
         self.cfsr = 0
         self.hfsr = 0
         self.bfar = 0
         self.demcr = 0
-        self.dwt_ctrl = 0x40000000     # NUMCOMP etc. not modelled
-        self.cyccnt_base = 0           # CYCCNT = cycles - base while enabled
+        self.dwt_ctrl = 0x40000000  # NUMCOMP etc. not modelled
+        self.cyccnt_base = 0  # CYCCNT = cycles - base while enabled
         self.cyccnt_frozen = 0
         self.systick_csr = 0
         self.systick_rvr = 0
@@ -133,7 +182,7 @@ class Scs(Peripheral):
         if exc in self.active:
             self.active.remove(exc)
         if exc >= 16 and self.lines[exc - 16]:
-            self.pending.add(exc)      # level still asserted: pends again (B1.5.2)
+            self.pending.add(exc)  # level still asserted: pends again (B1.5.2)
 
     def vectactive(self):
         return self.active[-1] if self.active else 0
@@ -187,18 +236,18 @@ class Scs(Peripheral):
         c = self.chip
         if off == 0x1000:
             return self.dwt_ctrl
-        if off == 0x1004:                               # DWT_CYCCNT
+        if off == 0x1004:  # DWT_CYCCNT
             if self.dwt_ctrl & 1:
                 return (c.cycles() - self.cyccnt_base) & 0xFFFFFFFF
             return self.cyccnt_frozen
         if 0x1008 <= off < 0x1100:
             return 0
-        if off == 0xE004:                               # ICTR: 64 lines
+        if off == 0xE004:  # ICTR: 64 lines
             return 1
         if off == 0xE010:
             self._systick_sync(c.now)
             v = self.systick_csr
-            self.systick_csr &= ~(1 << 16)              # COUNTFLAG clears on read
+            self.systick_csr &= ~(1 << 16)  # COUNTFLAG clears on read
             return v
         if off == 0xE014:
             return self.systick_rvr
@@ -206,7 +255,7 @@ class Scs(Peripheral):
             self._systick_sync(c.now)
             return self.systick_cvr
         if off == 0xE01C:
-            return 9000                                  # TENMS at 9 MHz (HCLK/8)
+            return 9000  # TENMS at 9 MHz (HCLK/8)
         if 0xE100 <= off < 0xE380:
             group, idx = divmod(off - 0xE100, 0x80)
             if idx >= 8:
@@ -224,7 +273,7 @@ class Scs(Peripheral):
                     bit = False
                 v |= bit << b
             return v
-        if 0xE300 <= off < 0xE320:                      # IABR
+        if 0xE300 <= off < 0xE320:  # IABR
             v = 0
             for b in range(32):
                 n = (off - 0xE300) * 8 + b
@@ -235,7 +284,7 @@ class Scs(Peripheral):
             n = off - 0xE400
             return sum(self.ipr[n + i] << (8 * i) for i in range(4) if n + i < NUM_IRQ)
         if off == 0xED00:
-            return 0x411FC231                           # CPUID: Cortex-M3 r1p1 (PM0056 §4.4.1)
+            return 0x411FC231  # CPUID: Cortex-M3 r1p1 (PM0056 §4.4.1)
         if off == 0xED04:
             return self._icsr()
         if off == 0xED08:
@@ -259,8 +308,8 @@ class Scs(Peripheral):
             return self.bfar
         if off == 0xEDFC:
             return self.demcr
-        if off == 0x42000:                              # DBGMCU_IDCODE (0xE0042000)
-            return 0x20036410                           # medium density, rev X
+        if off == 0x42000:  # DBGMCU_IDCODE (0xE0042000)
+            return 0x20036410  # medium density, rev X
         if off == 0x42004:
             return self.dbgmcu_cr
         c.unmodelled(self, off, "read")
@@ -269,7 +318,7 @@ class Scs(Peripheral):
     def _icsr(self):
         v = self.vectactive()
         if len(self.active) <= 1:
-            v |= 1 << 11                                # RETTOBASE
+            v |= 1 << 11  # RETTOBASE
         p = self.pending_exception()
         if p is not None:
             v |= p << 12
@@ -283,8 +332,15 @@ class Scs(Peripheral):
 
     def _shcsr(self):
         v = self.shcsr & (7 << 16)
-        for e, bit in ((MEMMANAGE, 0), (BUSFAULT, 1), (USAGEFAULT, 3), (SVCALL, 7),
-                       (DEBUGMON, 8), (PENDSV, 10), (SYSTICK, 11)):
+        for e, bit in (
+            (MEMMANAGE, 0),
+            (BUSFAULT, 1),
+            (USAGEFAULT, 3),
+            (SVCALL, 7),
+            (DEBUGMON, 8),
+            (PENDSV, 10),
+            (SYSTICK, 11),
+        ):
             if e in self.active:
                 v |= 1 << bit
         return v
@@ -314,7 +370,7 @@ class Scs(Peripheral):
             self.systick_rvr = value & 0xFFFFFF
             return
         if off == 0xE018:
-            self.systick_cvr = 0                         # any write clears (PM0056 §4.5.3)
+            self.systick_cvr = 0  # any write clears (PM0056 §4.5.3)
             self.systick_csr &= ~(1 << 16)
             self.systick_at = c.now
             return
@@ -388,7 +444,7 @@ class Scs(Peripheral):
             self.shcsr = self.merge(self.shcsr, value, mask) & (7 << 16)
             return
         if off == 0xED28:
-            self.cfsr &= ~(value & mask)                 # write 1 to clear
+            self.cfsr &= ~(value & mask)  # write 1 to clear
             return
         if off == 0xED2C:
             self.hfsr &= ~(value & mask)
@@ -396,7 +452,7 @@ class Scs(Peripheral):
         if off == 0xEDFC:
             self.demcr = self.merge(self.demcr, value, mask)
             return
-        if off == 0xEF00:                               # STIR
+        if off == 0xEF00:  # STIR
             n = value & 0x1FF
             if n < NUM_IRQ:
                 self.pending.add(16 + n)

@@ -17,10 +17,34 @@ HSI_HZ = 8_000_000
 HSE_HZ = 8_000_000
 
 AHB = {"DMA1": 0, "SRAM": 2, "FLITF": 4, "CRC": 6}
-APB2 = {"AFIO": 0, "GPIOA": 2, "GPIOB": 3, "GPIOC": 4, "GPIOD": 5, "GPIOE": 6, "ADC1": 9,
-        "ADC2": 10, "TIM1": 11, "SPI1": 12, "USART1": 14}
-APB1 = {"TIM2": 0, "TIM3": 1, "TIM4": 2, "WWDG": 11, "SPI2": 14, "USART2": 17, "USART3": 18,
-        "I2C1": 21, "I2C2": 22, "USB": 23, "CAN": 25, "BKP": 27, "PWR": 28}
+APB2 = {
+    "AFIO": 0,
+    "GPIOA": 2,
+    "GPIOB": 3,
+    "GPIOC": 4,
+    "GPIOD": 5,
+    "GPIOE": 6,
+    "ADC1": 9,
+    "ADC2": 10,
+    "TIM1": 11,
+    "SPI1": 12,
+    "USART1": 14,
+}
+APB1 = {
+    "TIM2": 0,
+    "TIM3": 1,
+    "TIM4": 2,
+    "WWDG": 11,
+    "SPI2": 14,
+    "USART2": 17,
+    "USART3": 18,
+    "I2C1": 21,
+    "I2C2": 22,
+    "USB": 23,
+    "CAN": 25,
+    "BKP": 27,
+    "PWR": 28,
+}
 AHB_DIV = [1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 64, 128, 256, 512]
 APB_DIV = [1, 1, 1, 1, 2, 4, 8, 16]
 
@@ -29,16 +53,16 @@ class Rcc(Peripheral):
     name = "RCC"
 
     def reset(self):
-        self.cr = 0x83            # HSION, HSIRDY, HSITRIM=16
+        self.cr = 0x83  # HSION, HSIRDY, HSITRIM=16
         self.cfgr = 0
         self.cir = 0
         self.apb2rstr = 0
         self.apb1rstr = 0
-        self.ahbenr = 0x14        # SRAMEN, FLITFEN
+        self.ahbenr = 0x14  # SRAMEN, FLITFEN
         self.apb2enr = 0
         self.apb1enr = 0
         self.bdcr = 0
-        self.csr = 0x0C000000     # PINRSTF, PORRSTF
+        self.csr = 0x0C000000  # PINRSTF, PORRSTF
 
     # --- clock tree --------------------------------------------------------------------------
     def pll_hz(self):
@@ -71,14 +95,26 @@ class Rcc(Peripheral):
 
     def snapshot(self):
         """The clock tree as numbers, cached by the chip (recomputed on every RCC write)."""
-        return {"hclk": self.hclk_hz(), "pclk": {1: self.pclk_hz(1), 2: self.pclk_hz(2)},
-                "timclk": {1: self.timer_hz(1), 2: self.timer_hz(2)}}
+        return {
+            "hclk": self.hclk_hz(),
+            "pclk": {1: self.pclk_hz(1), 2: self.pclk_hz(2)},
+            "timclk": {1: self.timer_hz(1), 2: self.timer_hz(2)},
+        }
 
     # --- registers -----------------------------------------------------------------------
     def read(self, off):
-        return {0x00: self.cr, 0x04: self.cfgr, 0x08: self.cir, 0x0C: self.apb2rstr,
-                0x10: self.apb1rstr, 0x14: self.ahbenr, 0x18: self.apb2enr, 0x1C: self.apb1enr,
-                0x20: self.bdcr, 0x24: self.csr}.get(off, 0)
+        return {
+            0x00: self.cr,
+            0x04: self.cfgr,
+            0x08: self.cir,
+            0x0C: self.apb2rstr,
+            0x10: self.apb1rstr,
+            0x14: self.ahbenr,
+            0x18: self.apb2enr,
+            0x1C: self.apb1enr,
+            0x20: self.bdcr,
+            0x24: self.csr,
+        }.get(off, 0)
 
     def write(self, off, value, mask):
         c = self.chip
@@ -90,7 +126,7 @@ class Rcc(Peripheral):
             cr = (cr & ~(1 << 1)) | ((cr & 1) << 1)
             hse_ok = bool(cr & (1 << 16))
             cr = (cr & ~(1 << 17)) | (hse_ok << 17)
-            pll_src_ok = (hse_ok if self.cfgr & (1 << 16) else bool(cr & 1))
+            pll_src_ok = hse_ok if self.cfgr & (1 << 16) else bool(cr & 1)
             cr = (cr & ~(1 << 25)) | ((bool(cr & (1 << 24)) and pll_src_ok) << 25)
             # the clock in use cannot be switched off (§7.3.1)
             sws = (self.cfgr >> 2) & 3
@@ -102,7 +138,6 @@ class Rcc(Peripheral):
                 cr |= 3 << 24
             self.cr = cr
         elif off == 0x04:
-            old_clk = self.hclk_hz()
             v = self.merge(self.cfgr, value, mask)
             sws = (self.cfgr >> 2) & 3
             sw = v & 3
@@ -136,12 +171,12 @@ class Rcc(Peripheral):
             self.apb1enr = self.merge(self.apb1enr, value, mask)
         elif off == 0x20:
             v = self.merge(self.bdcr, value, mask)
-            v = (v & ~2) | ((v & 1) << 1)                 # LSERDY follows LSEON
+            v = (v & ~2) | ((v & 1) << 1)  # LSERDY follows LSEON
             self.bdcr = v
         elif off == 0x24:
             v = self.merge(self.csr, value, mask)
-            v = (v & ~2) | ((v & 1) << 1)                 # LSIRDY follows LSION
-            if v & (1 << 24):                             # RMVF clears the reset flags
+            v = (v & ~2) | ((v & 1) << 1)  # LSIRDY follows LSION
+            if v & (1 << 24):  # RMVF clears the reset flags
                 v &= 0x00FFFFFF
             self.csr = v & ~(1 << 24)
         c.reschedule()
@@ -151,6 +186,7 @@ class Flash(Peripheral):
     """Flash memory interface (RM0008 §3.3.3 and PM0075): ACR (LATENCY, HLFCYA, PRFTBE, PRFTBS
     follows PRFTBE), the other registers read their reset values. Programming and erasing are
     not modelled; wait states do not slow the model's CPU (see core.py, CPI)."""
+
     name = "FLASH"
 
     def reset(self):
@@ -171,6 +207,7 @@ class Pwr(Peripheral):
     """Power control (RM0008 §5.4): CR (DBP and the low-power bits are stored; CWUF/CSBF clear
     the CSR flags), CSR (EWUP stored; no wake-up or standby flags: no low-power modes are
     modelled; PVDO reads 0, i.e. VDD above the PVD threshold)."""
+
     name = "PWR"
 
     def reset(self):

@@ -24,9 +24,9 @@ class Spi(Streaming):
         self.name = name
         self.apb = apb
         self.irq_n = irq
-        self.miso_pin = miso_pin     # (gpio, pin) used without a peer
+        self.miso_pin = miso_pin  # (gpio, pin) used without a peer
         self.peer = None
-        self.nss_pin = None          # (gpio, pin) for hardware NSS in slave mode
+        self.nss_pin = None  # (gpio, pin) for hardware NSS in slave mode
         super().__init__(chip, base)
 
     def reset(self):
@@ -60,7 +60,7 @@ class Spi(Streaming):
         if self.master() and self.shift is None and self.txbuf is not None:
             self.shift = self.txbuf
             self.txbuf = None
-            self.sr |= 0x82                     # TXE, BSY
+            self.sr |= 0x82  # TXE, BSY
             self.shift_done = t + self.byte_ticks()
             return True
         return False
@@ -69,39 +69,33 @@ class Spi(Streaming):
         """(rx, tx) DMA channels when a plain DMA transfer runs both ways (8-bit, memory
         increment, not circular, no SPI interrupt), else None: then bytes can be moved in a
         burst with the same result as one by one."""
-        if (self.cr2 & 3) != 3 or self.cr2 & 0xE0 or self.sr & 1 or not self.master():
+        if (
+            (self.cr2 & 3) != 3
+            or self.cr2 & 0xE0
+            or self.sr & 1
+            or self.cr1 & 0x800
+            or not self.master()
+        ):
             return None
-        dma = self.chip.dma
-        rx = tx = None
-        dr = self.base + 0x0C
-        for c in dma.active:
-            if c.p != dr or (c.ccr & 0x4FE0) != 0x80:
-                continue                        # PSIZE/MSIZE 8, MINC, !PINC, !CIRC, !M2M
-            if any(p is self for p, _ in dma.sources[c.n]):
-                if c.ccr & 0x10:
-                    tx = c
-                else:
-                    rx = c
+        rx, tx = self.chip.dma.plain_channels(self, self.base + 0x0C)
         if rx is None or tx is None or rx.remaining == 0:
             return None
         return rx, tx
 
     def _burst(self, now, rx, tx):
+        """The master's bytes up to `now` in one go: what it clocks out (the shift register,
+        the TX buffer, then the TX channel's memory), what comes back from the peer, both
+        channels advanced."""
         bt = self.byte_ticks()
-        n = 1 + (now - self.shift_done) // bt
-        n = min(n, rx.remaining)
-        uc = self.chip.uc
+        n = min(1 + (now - self.shift_done) // bt, rx.remaining)
+        uc = self.chip.fast
         ntx = min(n, tx.remaining)
-        src = bytes(uc.mem_read(tx.m, ntx)) if ntx else b""
-        out = bytearray()
-        peer = self.peer
-        if peer is None:
-            g, p = self.miso_pin
-            miso = 0xFF if g.level(p) else 0x00
+        src = uc.read(tx.m, ntx) if ntx else b""
+        mosi = []
         shift, txbuf, i = self.shift, self.txbuf, 0
         t = self.shift_done
         for _ in range(n):
-            out.append(peer.slave_exchange(shift) if peer is not None else miso)
+            mosi.append(shift & 0xFF)
             shift, txbuf = txbuf, None
             if i < ntx:
                 txbuf = src[i]
@@ -109,21 +103,15 @@ class Spi(Streaming):
             if shift is None:
                 break
             t += bt
-        uc.mem_write(rx.m, bytes(out))
+        if self.peer is not None:
+            out = self.peer.slave_exchange_many(mosi)
+        else:
+            g, p = self.miso_pin
+            out = [0xFF if g.level(p) else 0x00] * len(mosi)
+        uc.write(rx.m, bytes(out))
         dma = self.chip.dma
-        for c, k in ((rx, len(out)), (tx, i)):
-            if not k:
-                continue
-            before = c.remaining
-            c.remaining -= k
-            c.m += k
-            dma.transfers += k
-            half = c.total // 2
-            if before > half >= c.remaining:
-                dma._flag(c.n, 4)
-            if c.remaining == 0:
-                dma._flag(c.n, 2)
-            dma._irq_ch(c.n)
+        dma.advance(rx, len(out))
+        dma.advance(tx, i)
         self.bytes += len(out)
         self.shift, self.txbuf = shift, txbuf
         if shift is None:
@@ -155,7 +143,7 @@ class Spi(Streaming):
             self._received(rx)
             self.bytes += 1
             if not self._start(t):
-                self.sr &= ~0x80                # BSY off
+                self.sr &= ~0x80  # BSY off
             changed = True
             self.chip.dma.kick()
         if changed:
@@ -164,7 +152,7 @@ class Spi(Streaming):
 
     def _received(self, b):
         if self.sr & 1:
-            self.sr |= 0x40                     # OVR, byte lost
+            self.sr |= 0x40  # OVR, byte lost
         else:
             self.rxbuf = b
             self.sr |= 1
@@ -184,6 +172,69 @@ class Spi(Streaming):
         self.bytes += 1
         self._irq()
         self.chip.dma.kick()
+        return out
+
+    def slave_exchange_many(self, mosi):
+        """`slave_exchange` for each byte of `mosi` in turn, the bytes sent back as a list;
+        while both DMA channels run plainly and no SPI interrupt is enabled, in bursts."""
+        out = []
+        i = 0
+        while i < len(mosi):
+            pair = self._slave_dma_pair()
+            if pair is None:
+                out.append(self.slave_exchange(mosi[i]))
+                i += 1
+                continue
+            k = min(len(mosi) - i, pair[0].remaining)
+            out += self._slave_burst(mosi[i : i + k], *pair)
+            i += k
+        return out
+
+    def _slave_dma_pair(self):
+        """(rx, tx) when the slave's side of the next bytes can be a burst: enabled, selected,
+        8-bit frames, RX and TX by plain DMA (RX with room), RXNE clear, no interrupt enable."""
+        if (
+            (self.cr1 & 0x844) != 0x40
+            or (self.cr2 & 0xE3) != 3
+            or self.sr & 1
+            or not self.selected()
+        ):
+            return None
+        rx, tx = self.chip.dma.plain_channels(self, self.base + 0x0C)
+        if rx is None or tx is None or rx.remaining == 0:
+            return None
+        return rx, tx
+
+    def _slave_burst(self, mosi, rx, tx):
+        """len(mosi) <= rx.remaining bytes as `slave_exchange` moves them: each byte out is the
+        TX buffer (refilled by the TX channel right after it is taken, while the channel has
+        bytes) or, with the buffer empty, the shift register's last byte in; each byte in is
+        taken from DR by the RX channel at once, so RXNE and OVR never show."""
+        k = len(mosi)
+        uc = self.chip.fast
+        ntx = min(k, tx.remaining)
+        src = uc.read(tx.m, ntx) if ntx else b""
+        out = []
+        txbuf, shift, taken = self.txbuf, self.slave_shift, 0
+        for b in mosi:
+            out.append(shift if txbuf is None else txbuf)
+            shift = b
+            if taken < ntx:
+                txbuf = src[taken]
+                taken += 1
+            else:
+                txbuf = None
+        uc.write(rx.m, bytes(mosi))
+        dma = self.chip.dma
+        dma.advance(rx, k)
+        dma.advance(tx, taken)
+        self.txbuf, self.slave_shift = txbuf, shift
+        if taken:
+            self.sr |= 0x80  # BSY, as a DR write in slave mode sets it
+        self.sr = (self.sr & ~3) | (2 if txbuf is None else 0)
+        self.rxbuf = mosi[-1]
+        self.bytes += k
+        self._irq()
         return out
 
     def next_event(self):
@@ -218,8 +269,11 @@ class Spi(Streaming):
 
     def _irq(self):
         s, c2 = self.sr, self.cr2
-        lvl = (s & 2 and c2 & 0x80 and self.cr1 & 0x40) or (s & 1 and c2 & 0x40) or \
-              (s & 0x70 and c2 & 0x20)
+        lvl = (
+            (s & 2 and c2 & 0x80 and self.cr1 & 0x40)
+            or (s & 1 and c2 & 0x40)
+            or (s & 0x70 and c2 & 0x20)
+        )
         self.irq(self.irq_n, bool(lvl))
 
     # --- registers -----------------------------------------------------------------------
@@ -245,7 +299,7 @@ class Spi(Streaming):
         if off == 0x00:
             self.cr1 = self.merge(self.cr1, value, mask) & 0xFFFF
             if self.cr1 & 4 and self.cr1 & (1 << 9) and not self.cr1 & (1 << 8):
-                self.sr |= 0x20                 # MODF
+                self.sr |= 0x20  # MODF
                 self.cr1 &= ~0x44
             self._start(now)
         elif off == 0x04:

@@ -24,8 +24,11 @@ class Timer(Peripheral):
     def __init__(self, chip, base, name, apb, irqs):
         self.name = name
         self.apb = apb
-        self.irqs = irqs          # dict: "up", "cc", "trg", "brk" -> IRQ number
-        self.enc_pins = None      # (gpio, pin1, gpio, pin2) for encoder mode
+        self.irqs = irqs  # dict: "up", "cc", "trg", "brk" -> IRQ number
+        self.enc_pins = None  # (gpio, pin1, gpio, pin2) for encoder mode
+        # TI1/TI2 follow the pins' levels (Chip._route_timer_inputs), not the registers: an
+        # RCC reset of the timer does not change what is on its input pins
+        self.ti = [0, 0]
         super().__init__(chip, base)
 
     def reset(self):
@@ -39,7 +42,6 @@ class Timer(Peripheral):
         self.ccr_active = [0, 0, 0, 0]
         self.rcr = self.bdtr = self.dcr = 0
         self.anchor = self.chip.now if hasattr(self.chip, "now") else 0
-        self.ti = [0, 0]
         self._irq()
 
     # --- clocking --------------------------------------------------------------------------
@@ -62,8 +64,11 @@ class Timer(Peripheral):
             self.sr |= 1
 
     def _preload_pending(self):
-        return self.psc != self.psc_active or self.arr != self.arr_active or \
-            self.ccr != self.ccr_active
+        return (
+            self.psc != self.psc_active
+            or self.arr != self.arr_active
+            or self.ccr != self.ccr_active
+        )
 
     def _advance(self, n):
         """Count n times from the current state (up-counting, CNT <= ARR)."""
@@ -81,9 +86,9 @@ class Timer(Peripheral):
             if step >= to_ovf:
                 self.overflows += 1 + (step - to_ovf) // mod
                 self.cnt = (step - to_ovf) % mod
-                if not (self.cr1 & 2):                # UDIS
+                if not (self.cr1 & 2):  # UDIS
                     self._update_event()
-                if self.cr1 & 8:                      # one-pulse mode: stop at the update
+                if self.cr1 & 8:  # one-pulse mode: stop at the update
                     self.cr1 &= ~1
                     self.cnt = 0
                     return
@@ -93,7 +98,15 @@ class Timer(Peripheral):
 
     overflows = 0
 
+    _synced_at = -1
+
     def sync(self, now):
+        # A second sync at the same tick changes nothing (the counter moved to `now` already,
+        # a write since then re-anchored it at `now`), and registers read within one CPU slice
+        # all see the slice's start: most calls are such repeats.
+        if now == self._synced_at:
+            return
+        self._synced_at = now
         if not self.running():
             self.anchor = now
             return
@@ -104,7 +117,6 @@ class Timer(Peripheral):
         sr = self.sr
         while n > 0:
             # the prescaler may change at the first update: count up to it, then re-read
-            mod = self.arr_active + 1
             to_ovf = (self.arr_active - self.cnt) % 0x10000 + 1
             if self.psc != self.psc_active and n >= to_ovf:
                 self._advance(to_ovf)
@@ -147,8 +159,12 @@ class Timer(Peripheral):
 
     def _irq(self):
         s = self.sr & self.dier
-        if "up" in self.irqs and "cc" in self.irqs and len(self.irqs) > 1 and \
-                self.irqs["up"] != self.irqs["cc"]:
+        if (
+            "up" in self.irqs
+            and "cc" in self.irqs
+            and len(self.irqs) > 1
+            and self.irqs["up"] != self.irqs["cc"]
+        ):
             self.irq(self.irqs["up"], bool(s & 1))
             self.irq(self.irqs["cc"], bool(s & 0x1E))
             if "trg" in self.irqs:
@@ -161,13 +177,12 @@ class Timer(Peripheral):
     # --- encoder interface (§15.3.12) ----------------------------------------------------
     def encoder_edge(self, ch, level):
         """TI1 (ch=0) or TI2 (ch=1) changed level."""
-        old = list(self.ti)
         self.ti[ch] = level
         if not (self.cr1 & 1) or not self.encoder_mode():
             return
         sms = self.smcr & 7
         if (sms == 1 and ch == 1) or (sms == 2 and ch == 0):
-            return                                    # mode 1: TI1 edges only; 2: TI2 only
+            return  # mode 1: TI1 edges only; 2: TI2 only
         # polarity (CCxP inverts TIx)
         t1 = self.ti[0] ^ ((self.ccer >> 1) & 1)
         t2 = self.ti[1] ^ ((self.ccer >> 5) & 1)
@@ -249,9 +264,9 @@ class Timer(Peripheral):
         elif off == 0x0C:
             self.dier = self.merge(self.dier, value, mask) & 0x7FFF
         elif off == 0x10:
-            self.sr &= (value | ~mask) & 0xFFFF          # rc_w0
+            self.sr &= (value | ~mask) & 0xFFFF  # rc_w0
         elif off == 0x14:
-            if v & 1:                                     # UG
+            if v & 1:  # UG
                 self.cnt = 0
                 self.anchor = now
                 self._update_event(set_flag=not (self.cr1 & 4))

@@ -34,8 +34,8 @@ class Usart(Streaming):
         self.tdr = None
         self.shift = None
         self.shift_done = None
-        self.rx_in = deque()         # bytes waiting on the wire
-        self.rx_next = None          # tick when the next byte completes
+        self.rx_in = deque()  # bytes waiting on the wire
+        self.rx_next = None  # tick when the next byte completes
         self.idle_at = None
         self.sr_seen = 0
         self.bytes_out = 0
@@ -46,7 +46,7 @@ class Usart(Streaming):
     def frame_ticks(self):
         bits = 1 + (9 if self.cr1 & (1 << 12) else 8)
         stop = (self.cr2 >> 12) & 3
-        bits2 = bits * 2 + {0: 2, 1: 1, 2: 4, 3: 3}[stop]   # in half bits
+        bits2 = bits * 2 + {0: 2, 1: 1, 2: 4, 3: 3}[stop]  # in half bits
         per_bit = max(self.brr, 16) * (self.chip.TICK_HZ // self.chip.pclk[self.apb])
         return per_bit * bits2 // 2
 
@@ -67,8 +67,8 @@ class Usart(Streaming):
         if self.shift is None and self.tdr is not None and self.enabled() and self.cr1 & 8:
             self.shift = self.tdr
             self.tdr = None
-            self.sr |= 0x80                     # TXE
-            self.sr &= ~0x40                    # TC
+            self.sr |= 0x80  # TXE
+            self.sr &= ~0x40  # TC
             self.shift_done = t + self.frame_ticks()
             return True
         return False
@@ -83,7 +83,7 @@ class Usart(Streaming):
             if self.tx_sink:
                 self.tx_sink(b)
             if not self._start_tx(t):
-                self.sr |= 0x40                 # TC
+                self.sr |= 0x40  # TC
             changed = True
             self.chip.dma.kick()
         while self.rx_next is not None and self.rx_next <= now:
@@ -92,7 +92,7 @@ class Usart(Streaming):
             if self.enabled() and self.cr1 & 4:
                 self.bytes_in += 1
                 if self.sr & 0x20:
-                    self.sr |= 0x08             # ORE: the new byte is lost
+                    self.sr |= 0x08  # ORE: the new byte is lost
                     self.overruns += 1
                 else:
                     self.rdr = b
@@ -103,7 +103,7 @@ class Usart(Streaming):
             self._irq()
             self.chip.dma.kick()
         if self.idle_at is not None and self.idle_at <= now and self.rx_next is None:
-            self.sr |= 0x10                     # IDLE
+            self.sr |= 0x10  # IDLE
             self.idle_at = None
             changed = True
         if changed:
@@ -111,21 +111,38 @@ class Usart(Streaming):
             self.chip.reschedule()
 
     def next_event(self):
-        ts = [t for t in (self.shift_done if self.shift is not None else None, self.rx_next,
-                          self.idle_at if self.rx_next is None else None) if t is not None]
+        ts = [
+            t
+            for t in (
+                self.shift_done if self.shift is not None else None,
+                self.rx_next,
+                self.idle_at if self.rx_next is None else None,
+            )
+            if t is not None
+        ]
         return min(ts) if ts else None
 
     def dma_request(self, key):
         if key == "tx":
-            return bool(self.cr3 & 0x80 and self.sr & 0x80 and self.tdr is None
-                        and self.enabled() and self.cr1 & 8)
+            return bool(
+                self.cr3 & 0x80
+                and self.sr & 0x80
+                and self.tdr is None
+                and self.enabled()
+                and self.cr1 & 8
+            )
         return bool(self.cr3 & 0x40 and self.sr & 0x20)
 
     def _irq(self):
         s, c1 = self.sr, self.cr1
-        lvl = (s & 0x80 and c1 & 0x80) or (s & 0x40 and c1 & 0x40) or \
-              (s & 0x28 and c1 & 0x20) or (s & 0x10 and c1 & 0x10) or \
-              (s & 0x01 and c1 & 0x100) or (s & 0x0E and self.cr3 & 1 and self.cr3 & 0x40)
+        lvl = (
+            (s & 0x80 and c1 & 0x80)
+            or (s & 0x40 and c1 & 0x40)
+            or (s & 0x28 and c1 & 0x20)
+            or (s & 0x10 and c1 & 0x10)
+            or (s & 0x01 and c1 & 0x100)
+            or (s & 0x0E and self.cr3 & 1 and self.cr3 & 0x40)
+        )
         self.irq(self.irq_n, bool(lvl))
 
     # --- registers -----------------------------------------------------------------------
@@ -137,18 +154,23 @@ class Usart(Streaming):
         if off == 0x04:
             v = self.rdr
             self.sr &= ~0x20
-            self.sr &= ~(self.sr_seen & 0x1F)   # IDLE, ORE, NE, FE, PE after an SR read
+            self.sr &= ~(self.sr_seen & 0x1F)  # IDLE, ORE, NE, FE, PE after an SR read
             self.sr_seen = 0
             self._irq()
             return v
-        return {0x08: self.brr, 0x0C: self.cr1, 0x10: self.cr2, 0x14: self.cr3,
-                0x18: self.gtpr}.get(off, 0)
+        return {
+            0x08: self.brr,
+            0x0C: self.cr1,
+            0x10: self.cr2,
+            0x14: self.cr3,
+            0x18: self.gtpr,
+        }.get(off, 0)
 
     def write(self, off, value, mask):
         now = self.chip.now
         self.sync(now)
         if off == 0x00:
-            clr = ~value & mask & 0x360         # rc_w0: CTS, LBD, TC, RXNE
+            clr = ~value & mask & 0x360  # rc_w0: CTS, LBD, TC, RXNE
             self.sr &= ~clr
         elif off == 0x04:
             if self.sr_seen & 0x40:

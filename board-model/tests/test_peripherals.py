@@ -59,7 +59,7 @@ class TestCrc(unittest.TestCase):
     def test_known_value(self):
         c = Crc(StubChip(), 0x40023000)
         c.write(0x00, 0x12345678, W)
-        self.assertEqual(c.read(0x00), 0xDF8A8A2B)   # the usual STM32 CRC check value
+        self.assertEqual(c.read(0x00), 0xDF8A8A2B)  # the usual STM32 CRC check value
         self.assertEqual(c.read(0x00), crc32_word(0xFFFFFFFF, 0x12345678))
 
     def test_reset_and_idr(self):
@@ -77,11 +77,11 @@ class TestRcc(unittest.TestCase):
         chip = StubChip()
         r = Rcc(chip, 0x40021000)
         self.assertEqual(r.sysclk_hz(), 8_000_000)
-        r.write(0x04, 2, W)                      # SW=PLL while the PLL is off: ignored
+        r.write(0x04, 2, W)  # SW=PLL while the PLL is off: ignored
         self.assertEqual((r.read(0x04) >> 2) & 3, 0)
         r.write(0x00, r.read(0x00) | (1 << 16), W)
         self.assertTrue(r.read(0x00) & (1 << 17))  # HSERDY
-        r.write(0x04, (7 << 18) | (1 << 16) | (4 << 8), W)   # PLL x9 from HSE, APB1 /2
+        r.write(0x04, (7 << 18) | (1 << 16) | (4 << 8), W)  # PLL x9 from HSE, APB1 /2
         r.write(0x00, r.read(0x00) | (1 << 24), W)
         self.assertTrue(r.read(0x00) & (1 << 25))  # PLLRDY
         r.write(0x04, r.read(0x04) | 2, W)
@@ -96,25 +96,25 @@ class TestTimer(unittest.TestCase):
     def test_counting_and_flags(self):
         chip = StubChip()
         t = Timer(chip, 0x40000800, "TIM4", 1, {"up": 30})
-        t.write(0x28, 71, W)                     # 1 MHz
+        t.write(0x28, 71, W)  # 1 MHz
         t.write(0x2C, 0xFFFF, W)
-        t.write(0x00, 4, W)                      # URS
-        t.write(0x14, 1, W)                      # UG: no UIF while URS=1
+        t.write(0x00, 4, W)  # URS
+        t.write(0x14, 1, W)  # UG: no UIF while URS=1
         t.write(0x00, 0, W)
         self.assertEqual(t.read(0x10) & 1, 0)
         t.write(0x34, 0x8000, W)
-        t.write(0x0C, 3, W)                      # UIE, CC1IE
+        t.write(0x0C, 3, W)  # UIE, CC1IE
         t.write(0x00, 1, W)
         chip.now = 72 * 1000
         self.assertEqual(t.read(0x24), 1000)
         self.assertEqual(t.next_event(), 72 * 0x8000)
         chip.now = 72 * 0x8000
-        self.assertTrue(t.read(0x10) & 2)        # CC1IF at CNT == 0x8000
+        self.assertTrue(t.read(0x10) & 2)  # CC1IF at CNT == 0x8000
         self.assertIn(16 + 30, chip.nvic.pending)
-        t.write(0x10, ~2 & 0xFFFF, W)            # rc_w0
+        t.write(0x10, ~2 & 0xFFFF, W)  # rc_w0
         self.assertFalse(t.read(0x10) & 2)
         chip.now = 72 * 0x10000
-        self.assertTrue(t.read(0x10) & 1)        # UIF at the overflow
+        self.assertTrue(t.read(0x10) & 1)  # UIF at the overflow
         self.assertEqual(t.read(0x24), 0)
 
     def test_encoder_x4(self):
@@ -124,13 +124,17 @@ class TestTimer(unittest.TestCase):
         t.write(0x08, 3, W)
         t.write(0x00, 1, W)
         a = b = 0
-        for _ in range(4):                       # A leads B: one full cycle = 4 counts up
-            a ^= 1; t.encoder_edge(0, a)
-            b ^= 1; t.encoder_edge(1, b)
+        for _ in range(4):  # A leads B: one full cycle = 4 counts up
+            a ^= 1
+            t.encoder_edge(0, a)
+            b ^= 1
+            t.encoder_edge(1, b)
         self.assertEqual(t.read(0x24), 8)
-        for _ in range(2):                       # reverse: B leads A
-            b ^= 1; t.encoder_edge(1, b)
-            a ^= 1; t.encoder_edge(0, a)
+        for _ in range(2):  # reverse: B leads A
+            b ^= 1
+            t.encoder_edge(1, b)
+            a ^= 1
+            t.encoder_edge(0, a)
         self.assertEqual(t.read(0x24), 4)
 
 
@@ -140,14 +144,14 @@ class TestNvic(unittest.TestCase):
         chip = StubChip()
         n = chip.nvic
         n.write(0xE100, (1 << 30) | (1 << 6), W)  # enable TIM4, EXTI0
-        n.write(0xE400 + 28, 0x20 << 16, W)       # IPR[30] = 0x20
-        n.write(0xE404, 0x10 << 16, W)            # IPR[6] = 0x10
+        n.write(0xE400 + 28, 0x20 << 16, W)  # IPR[30] = 0x20
+        n.write(0xE404, 0x10 << 16, W)  # IPR[6] = 0x10
         n.set_line(30, True)
         n.set_line(6, True)
-        self.assertEqual(n.takeable(0), 16 + 6)   # EXTI0 (0x10) before TIM4 (0x20)
-        self.assertIsNone(n.takeable(1))          # PRIMASK
+        self.assertEqual(n.takeable(0), 16 + 6)  # EXTI0 (0x10) before TIM4 (0x20)
+        self.assertIsNone(n.takeable(1))  # PRIMASK
         n.activate(16 + 6)
-        self.assertIsNone(n.takeable(0))          # 0x20 does not preempt 0x10
+        self.assertIsNone(n.takeable(0))  # 0x20 does not preempt 0x10
         n.set_line(6, False)
         n.deactivate(16 + 6)
         self.assertEqual(n.takeable(0), 16 + 30)
@@ -157,7 +161,7 @@ class TestNvic(unittest.TestCase):
         n.write(0xE100, 1 << 30, W)
         n.set_line(30, True)
         n.activate(16 + 30)
-        n.deactivate(16 + 30)                     # line still high: pending again
+        n.deactivate(16 + 30)  # line still high: pending again
         self.assertIn(16 + 30, n.pending)
 
 
@@ -168,18 +172,18 @@ class TestUsart(unittest.TestCase):
         u = Usart(chip, 0x40013800, "USART1", 2, 37)
         out = []
         u.tx_sink = out.append
-        u.write(0x08, 625, W)                     # 72 MHz / 115200
+        u.write(0x08, 625, W)  # 72 MHz / 115200
         u.write(0x0C, (1 << 13) | (1 << 3) | (1 << 2), W)
         u.write(0x04, 0x55, W)
-        self.assertTrue(u.read(0x00) & 0x80)      # TXE: moved to the shift register
-        self.assertEqual(u.next_event(), 6250)    # 86.8 us
+        self.assertTrue(u.read(0x00) & 0x80)  # TXE: moved to the shift register
+        self.assertEqual(u.next_event(), 6250)  # 86.8 us
         chip.now = 6249
         u.sync(chip.now)
         self.assertEqual(out, [])
         chip.now = 6250
         u.sync(chip.now)
         self.assertEqual(out, [0x55])
-        self.assertTrue(u.read(0x00) & 0x40)      # TC
+        self.assertTrue(u.read(0x00) & 0x40)  # TC
 
     def test_receive_idle(self):
         chip = StubChip()
@@ -196,9 +200,9 @@ class TestUsart(unittest.TestCase):
         self.assertEqual(u.read(0x04), ord("b"))
         chip.now = 18750
         u.sync(chip.now)
-        self.assertTrue(u.read(0x00) & 0x10)      # IDLE after one idle frame
+        self.assertTrue(u.read(0x00) & 0x10)  # IDLE after one idle frame
         u.read(0x04)
-        self.assertFalse(u.read(0x00) & 0x10)     # cleared by SR read then DR read
+        self.assertFalse(u.read(0x00) & 0x10)  # cleared by SR read then DR read
 
 
 if __name__ == "__main__":
