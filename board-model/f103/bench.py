@@ -38,6 +38,7 @@ class Bench:
             )
         self.slice = int(slice_us * Chip.TICK_HZ / 1e6)
         self.now = 0
+        self.scheduled_resets = []  # (tick, board, hold ticks), in order
         if "slave" in self.boards and "master" in self.boards:
             self.wire()
         self.rest_encoders()
@@ -66,19 +67,34 @@ class Bench:
         s.gpio[0].drive(4, m.gpio[0].level(4))
         m.gpio[0].listen(4, lambda lvl: s.gpio[0].drive(4, lvl))
 
+    def reset_at(self, board, secs, hold_ms):
+        """A system reset of `board` by its NRST pin, `secs` of simulated time after power-on,
+        the pin held low `hold_ms` (reset.py)."""
+        tick = int(round(secs * Chip.TICK_HZ))
+        self.scheduled_resets.append((tick, board, int(hold_ms * 1e-3 * Chip.TICK_HZ)))
+        self.scheduled_resets.sort()
+
     def run(self, ticks, stop_on_halt=True):
         end = self.now + ticks
         while self.now < end:
-            t = min(end, self.now + self.slice)
+            # a slice ends at a scheduled reset, so that it lands on its tick
+            stop = min(end, self.scheduled_resets[0][0]) if self.scheduled_resets else end
+            t = min(stop, self.now + self.slice)
             # every board asleep: jump to the first wake-up (lock-step resumes from there)
-            w = min(b.wake_time(end) for b in self.boards.values())
+            w = min(b.wake_time(stop) for b in self.boards.values())
             if w > t:
                 t = w
             for b in self.boards.values():
                 b.run_until(t)
             self.now = t
+            self._fire_resets()
             if stop_on_halt and all(b.halted for b in self.boards.values()):
                 break
+
+    def _fire_resets(self):
+        while self.scheduled_resets and self.scheduled_resets[0][0] <= self.now:
+            _, name, hold = self.scheduled_resets.pop(0)
+            self.boards[name].system_reset("NRST pin", hold)
 
 
 def fmt_fault(chip, f):
@@ -107,6 +123,40 @@ def speed_line(sim_ticks, wall):
     )
 
 
+def ms(ticks):
+    return f"{ticks / Chip.TICK_HZ * 1e3:.4f} ms"
+
+
+def reset_lines(chip):
+    """(text, idle again) for each system reset of `chip`: when, from what, and whether the
+    image came back to its executor's WFE after it."""
+    out = []
+    for r in chip.resets:
+        idle = r["idle"]
+        again = f"idle again at {ms(idle)}" if idle is not None else "NOT idle again"
+        out.append(
+            (f"at {ms(r['t'])} ({r['source']}, held {ms(r['hold'])}), {again}", idle is not None)
+        )
+    return out
+
+
+def stack_line(chip):
+    """(ok, the stack's high-water mark since power-on, as `boot` prints it)."""
+    used, room, over = chip.stack_report()
+    deepest = chip.sp_top - chip.sp_min if chip.sp_min <= chip.sp_top else 0
+    if over:
+        lo = chip.elf.sym("_stack_end")
+        return False, (
+            f"OVERFLOW: all {room} B of room between _stack_end {lo:#x} and {chip.sp_top:#x} "
+            f"overwritten; deepest SP seen {chip.sp_min:#x} = {deepest} B deep "
+            f"({deepest - room} B into the statics)"
+        )
+    return True, (
+        f"used {used} B of {room} B room ({100 * used / room:.0f} %), {room - used} B free "
+        f"(deepest SP sampled {deepest} B)"
+    )
+
+
 def report(chip, sim_ticks, wall):
     ok = True
     lines = [f"== {chip.name}: {os.path.relpath(chip.elf.path, ROOT)}"]
@@ -116,6 +166,9 @@ def report(chip, sim_ticks, wall):
     )
     if idle is None:
         ok = False
+    for text, again in reset_lines(chip):
+        lines.append(f"  system reset      {text}")
+        ok &= again
     if chip.panics:
         p = chip.panics[0]
         where = chip.elf.where(p["caller"])
@@ -130,18 +183,9 @@ def report(chip, sim_ticks, wall):
         ok = False
     if chip.halted:
         lines.append(f"  stopped           {chip.halted}")
-    used, room, over = chip.stack_report()
-    lo = chip.elf.sym("_stack_end")
-    deepest = chip.sp_top - chip.sp_min if chip.sp_min else 0
-    if over:
-        lines.append(
-            f"  stack             OVERFLOW: all {room} B of room between _stack_end {lo:#x} and {chip.sp_top:#x} overwritten; deepest SP seen {chip.sp_min:#x} = {deepest} B deep ({deepest - room} B into the statics)"
-        )
-        ok = False
-    else:
-        lines.append(
-            f"  stack             used {used} B of {room} B room ({100 * used / room:.0f} %), {room - used} B free (deepest SP sampled {deepest} B)"
-        )
+    stack_ok, text = stack_line(chip)
+    lines.append(f"  stack             {text}")
+    ok &= stack_ok
     dh = chip.default_handler_lines()
     # A line left enabled on DefaultHandler fails the board. One enabled only during
     # `embassy_stm32::init`, and masked before anything could set its pending bit (its EXTI
@@ -189,6 +233,7 @@ def cmd_boot(args):
         log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None,
         boards=args.boards,
     )
+    _schedule_resets(bench, args)
     ticks = int(args.ms * 1e-3 * Chip.TICK_HZ)
     t0 = time.perf_counter()
     bench.run(ticks, stop_on_halt=True)
@@ -230,6 +275,8 @@ def _tell_halts(bench):
         if b.halted and not getattr(b, "_halt_told", False):
             b._halt_told = True
             print(report(b, bench.now, 0)[1], file=sys.stderr, flush=True)
+        elif not b.halted:
+            b._halt_told = False  # running again after a reset: a new halt is told too
 
 
 def _summary(bench, sim_ticks, wall):
@@ -244,12 +291,56 @@ def _summary(bench, sim_ticks, wall):
         print(f"board model: {b.name} {load_line(b)}", file=sys.stderr)
 
 
+def _boards_end(bench, wall):
+    """Per board, after `serve` or `play-check`: its stack high-water mark since power-on and
+    its system resets, one line each; a board that faulted, panicked, stopped, overflowed its
+    stack or did not come back to idle after a reset gets `boot`'s whole report. False if any
+    did."""
+    all_ok = True
+    for b in bench.boards.values():
+        ok, text = stack_line(b)
+        print(f"board model: {b.name} stack {text}", file=sys.stderr)
+        for text, again in reset_lines(b):
+            print(f"board model: {b.name} system reset {text}", file=sys.stderr)
+            ok &= again
+        if not ok or b.halted or b.faults or b.panics:
+            print(report(b, bench.now, wall)[1], file=sys.stderr)
+            all_ok = False
+    return all_ok
+
+
+def _schedule_resets(bench, args):
+    for secs in args.reset_slave_at or ():
+        if "slave" not in bench.boards:
+            sys.exit("board-model: --reset-slave-at without the slave board")
+        bench.reset_at("slave", secs, args.reset_hold_ms)
+
+
+def _add_reset_args(p):
+    p.add_argument(
+        "--reset-slave-at",
+        type=float,
+        action="append",
+        metavar="SECS",
+        help="system reset of the slave by its NRST pin, SECS of simulated time after "
+        "power-on (repeatable); SRAM kept (board-model/README.md)",
+    )
+    p.add_argument(
+        "--reset-hold-ms",
+        type=float,
+        default=5.0,
+        help="how long NRST is held low; the slave then runs from its vector table "
+        "(default 5 ms, as virtual-board's --fault-slave-reset-at)",
+    )
+
+
 def cmd_serve(args):
     """The master's USART1 on a pseudo-terminal, in real time (imitates `host-bench
     virtual-board`: the first line is `port: /dev/pts/N`)."""
     boards = ("master",) if args.no_slave else ("slave", "master")
     bench = _bench_for(args, boards)
     drivers = _drive(bench, args)
+    _schedule_resets(bench, args)
     link = PtyLink(bench.boards["master"].usart1)
     print(f"port: {link.port}", flush=True)
     print(
@@ -268,6 +359,7 @@ def cmd_serve(args):
         lambda: _tell_halts(bench),
     )
     _summary(bench, bench.now, wall)
+    ok = _boards_end(bench, wall)
     for d in drivers:
         s = bench.boards["slave"]
         print(
@@ -275,7 +367,7 @@ def cmd_serve(args):
             f"{s.tim2.cnt}, TIM1 CNT {s.tim1.cnt}, EXTI edges {s.exti.edges}",
             file=sys.stderr,
         )
-    return 0
+    return 0 if ok else 1
 
 
 def _drive(bench, args):
@@ -297,6 +389,7 @@ def cmd_play_check(args):
     """Boot both boards, serve USART1 on a pty and run `host-bench play` against it; exit with
     play's status. The model's speed is measured over the play alone."""
     bench = _bench_for(args)
+    _schedule_resets(bench, args)
     link = PtyLink(bench.boards["master"].usart1)
     bench.run(int(args.boot_ms * 1e-3 * Chip.TICK_HZ))  # boot before the host knocks
     cmd = [
@@ -325,10 +418,8 @@ def cmd_play_check(args):
     rc = host.wait()
     link.close()
     _summary(bench, bench.now - start, wall)
-    for b in bench.boards.values():
-        if b.halted or b.faults or b.panics:
-            print(report(b, bench.now, wall)[1], file=sys.stderr)
-            rc = rc or 1
+    if not _boards_end(bench, wall):
+        rc = rc or 1
     return rc
 
 
@@ -345,6 +436,7 @@ def main(argv=None):
     b.add_argument("--slice-us", type=float, default=10.0, help="lock-step slice (default 10 us)")
     b.add_argument("--cpi", type=float, default=1.0, help="cycles per instruction (default 1)")
     b.add_argument("-v", "--verbose", action="store_true", help="log as it runs")
+    _add_reset_args(b)
     b.set_defaults(fn=cmd_boot)
     sv = sub.add_parser("serve", help="the master's USART1 on a pseudo-terminal, in real time")
     sv.add_argument("--slave", help="slave ELF")
@@ -367,6 +459,7 @@ def main(argv=None):
         metavar="FILE",
         help="timed edges for the slave's pins, CSV t_us,pin,level",
     )
+    _add_reset_args(sv)
     sv.set_defaults(fn=cmd_serve)
     pc = sub.add_parser(
         "play-check", help="serve, and run `host-bench play` against it; its exit status"
@@ -382,6 +475,7 @@ def main(argv=None):
     pc.add_argument("--cpi", type=float, default=1.0)
     pc.add_argument("-v", "--verbose", action="store_true")
     pc.add_argument("play_args", nargs="*", help="more of play's options, after --")
+    _add_reset_args(pc)
     pc.set_defaults(fn=cmd_play_check)
     args = ap.parse_args(argv)
     return args.fn(args)

@@ -37,13 +37,9 @@ from unicorn import (
 )
 from unicorn.arm_const import (
     UC_CPU_ARM_CORTEX_M3,
-    UC_ARM_REG_LR,
     UC_ARM_REG_PC,
-    UC_ARM_REG_SP,
-    UC_ARM_REG_XPSR,
     UC_ARM_REG_PRIMASK,
     UC_ARM_REG_BASEPRI,
-    UC_ARM_REG_CONTROL,
 )
 
 from . import nvic as nv
@@ -65,16 +61,16 @@ from .memmap import (
 )
 from .periph import Reserved
 from .rcc import Rcc, Flash, Pwr
+from .reset import PAINT, ResetModel
 from .spi import Spi
 from .tim import Timer
 from .ucfast import FastUc
 from .usart import Usart
 
-PAINT = 0xA5
 SIZE_MASK = {1: 0xFF, 2: 0xFFFF, 4: 0xFFFFFFFF}
 
 
-class Chip(ExceptionModel):
+class Chip(ExceptionModel, ResetModel):
     TICK_HZ = 72_000_000
 
     def __init__(self, name, elf, uid=b"", cpi=1.0, log=None):
@@ -111,7 +107,7 @@ class Chip(ExceptionModel):
         uc.hook_add(UC_HOOK_INTR, self._on_intr)
         uc.hook_add(UC_HOOK_MEM_UNMAPPED | UC_HOOK_MEM_PROT, self._on_bad_access)
         self._hook_instructions()
-        self.reset()
+        self.power_on()
 
     # --- set-up --------------------------------------------------------------------------
     def _build_peripherals(self):
@@ -317,37 +313,6 @@ class Chip(ExceptionModel):
                     self._trap(a, 2, self._on_panic_entry)
         self.default_handler = (self.elf.sym("DefaultHandler") or 0) & ~1
 
-    def reset(self):
-        uc = self.uc
-        uc.mem_write(SRAM_BASE, bytes([PAINT]) * SRAM_SIZE)  # power-on garbage / stack paint
-        for p in set(self.ptab.values()):
-            p.reset()
-        self.nvic.reset()
-        self.ipsr = 0
-        self.event = False
-        self.sleeping = False
-        self.halted = None
-        self.faults = []
-        self.panics = []
-        self.first_idle = None
-        self.instructions = 0
-        self.busy_ticks = 0
-        self.sleeps = 0
-        self.exceptions = 0
-        self.sp_min = 0xFFFFFFFF
-        self.pending_reset = None
-        self._next_cache = None
-        self._stop_reason = None
-        sp0, pc0 = struct.unpack("<II", uc.mem_read(0, 8))
-        self.sp_top = sp0
-        uc.reg_write(UC_ARM_REG_SP, sp0)
-        uc.reg_write(UC_ARM_REG_LR, 0xFFFFFFFF)
-        uc.reg_write(UC_ARM_REG_PRIMASK, 0)
-        uc.reg_write(UC_ARM_REG_CONTROL, 0)
-        uc.reg_write(UC_ARM_REG_XPSR, 0x01000000)
-        self.pc = pc0 & ~1
-        self._clock_update()
-
     # --- clocks --------------------------------------------------------------------------
     def _clock_update(self):
         snap = self.rcc.snapshot()
@@ -483,6 +448,11 @@ class Chip(ExceptionModel):
     def run_until(self, t_end):
         uc = self.uc
         while self.now < t_end and self.halted is None:
+            if self.held_until is not None:  # NRST low: nothing runs (reset.py)
+                if self.now < self.held_until:
+                    self.now = min(t_end, self.held_until)
+                    continue
+                self.held_until = None
             now = self.now
             nxt = self.next_event()
             if nxt is not None and nxt <= now:
@@ -520,8 +490,7 @@ class Chip(ExceptionModel):
                 self.busy_ticks += dt
             self.now = max(limit, int(now + dt)) if self._stop_reason is None else limit
             if self.pending_reset:
-                self.log(f"system reset ({self.pending_reset})")
-                self.reset()
+                self.system_reset(self.pending_reset)
 
     def _service(self):
         """At a slice boundary: take an interrupt that can be taken."""
@@ -538,6 +507,8 @@ class Chip(ExceptionModel):
 
     def wake_time(self, limit):
         """When this board next needs the CPU, if it sleeps now (else its own time)."""
+        if self.held_until is not None and self.halted is None:
+            return min(limit, max(self.held_until, self.now))
         if not self.sleeping or self.halted is not None:
             return self.now if self.halted is None else limit
         if self.nvic.pending and self.nvic.takeable(0, 0) is not None:

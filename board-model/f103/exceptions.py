@@ -154,8 +154,7 @@ class ExceptionModel:
             self.event = False
             uc.reg_write(UC_ARM_REG_PC, (addr + size) | 1)
             return
-        if self.first_idle is None:
-            self.first_idle = self.now
+        self.idle_reached()
         self.sleeping = True
         self.sleeps += 1
         self._stop_reason = "sleep"

@@ -19,15 +19,20 @@ class Gpio(Peripheral):
         self.port = port  # 0 = A, 1 = B, ...
         self.name = "GPIO" + "ABCDEFG"[port]
         self.listeners = {}
+        # What drives the pins from outside (the other board, the encoders) is not the
+        # port's: a reset of the port or of the chip leaves it (reset.py)
+        self.ext = [None] * 16
         super().__init__(chip, base)
 
     def reset(self):
         self.cr = [0x44444444, 0x44444444]
         self.odr = 0
         self.lckr = 0
-        self.ext = [None] * 16
         self.af = [1] * 16
-        self.levels = self._compute()
+        if hasattr(self, "levels"):
+            self._update()  # outputs let go: the wires to the other board see it
+        else:
+            self.levels = self._compute()  # at construction: nothing listens yet
 
     def listen(self, pin, fn):
         self.listeners.setdefault(pin, []).append(fn)

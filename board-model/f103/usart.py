@@ -54,6 +54,14 @@ class Usart(Streaming):
         return self.cr1 & (1 << 13)
 
     # --- external side -----------------------------------------------------------------------
+    def drop_rx_backlog(self):
+        """Forget the bytes given to `receive` that have not started on the line (the byte on
+        the line completes); how many. For pty_link.PtyLink, when the host closes the port."""
+        n = max(0, len(self.rx_in) - 1)
+        while len(self.rx_in) > 1:
+            self.rx_in.pop()
+        return n
+
     def receive(self, data):
         now = self.chip.now
         for b in data:

@@ -1,5 +1,7 @@
 """`host-bench play` through the real images on the model: every pose update the slave reports
-must be bit-exact with the host's, in both sensor modes (time-stamped ticks, counts).
+must be bit-exact with the host's, in both sensor modes (time-stamped ticks, counts), and with
+a robot from robots/ uploaded instead of the stream's own; play-check ends with each board's
+stack high-water mark.
 
 The stream is written by scripts/circle-stream.py (an independent writer, not host-bench's
 generator): a differential drive on a circle, half a second of it. Needs the release images
@@ -23,6 +25,22 @@ MASTER = os.environ.get("BOARD_MODEL_MASTER", os.path.join(IMAGES, "firmware-mas
 HOST_BENCH = os.environ.get("HOST_BENCH", os.path.join(ROOT, "target", "debug", "host-bench"))
 
 
+def circle_stream(out_dir):
+    """scripts/circle-stream.py's circle, 0.05 laps (0.52 s, 784 ticks); its file's path."""
+    subprocess.run(
+        [
+            sys.executable,
+            os.path.join(ROOT, "scripts", "circle-stream.py"),
+            "--out",
+            out_dir,
+            "--laps",
+            "0.05",
+        ],
+        check=True,
+    )
+    return os.path.join(out_dir, "circle.csv")
+
+
 @unittest.skipUnless(
     os.path.exists(SLAVE) and os.path.exists(MASTER) or "BOARD_MODEL_SLAVE" in os.environ,
     "images not built",
@@ -37,24 +55,13 @@ class TestPlay(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.dir = tempfile.TemporaryDirectory()
-        subprocess.run(
-            [
-                sys.executable,
-                os.path.join(ROOT, "scripts", "circle-stream.py"),
-                "--out",
-                cls.dir.name,
-                "--laps",
-                "0.05",
-            ],
-            check=True,
-        )
-        cls.ticks = os.path.join(cls.dir.name, "circle.csv")
+        cls.ticks = circle_stream(cls.dir.name)
 
     @classmethod
     def tearDownClass(cls):
         cls.dir.cleanup()
 
-    def play(self, sensor):
+    def play(self, sensor, *play_args):
         r = subprocess.run(
             [
                 sys.executable,
@@ -70,6 +77,8 @@ class TestPlay(unittest.TestCase):
                 MASTER,
                 "--host-bench",
                 HOST_BENCH,
+                "--",
+                *play_args,
             ],
             capture_output=True,
             text=True,
@@ -79,6 +88,8 @@ class TestPlay(unittest.TestCase):
         self.assertEqual(r.returncode, 0, out)
         line = next((l for l in r.stdout.splitlines() if l.startswith("board vs host")), "")
         self.assertRegex(line, r"(\d+) of \1 updates bit-exact, 0 mismatches", out)
+        for board in ("slave", "master"):
+            self.assertRegex(out, rf"board model: {board} stack used \d+ B of \d+ B room", out)
         return out
 
     def test_timestamps(self):
@@ -86,6 +97,14 @@ class TestPlay(unittest.TestCase):
 
     def test_counts(self):
         self.play("counts")
+
+    def test_uploaded_robot(self):
+        """diff-wide (robots/diff-wide.toml: a 0.42 m axle, its reference point 3 cm off the
+        axle's middle), neither the stream's robot nor the slave's power-on seed 004: play
+        uploads it, the slave confirms its fingerprint, and computes the same poses with it."""
+        robot = os.path.join(ROOT, "robots", "diff-wide.toml")
+        out = self.play("timestamps", "--robot", robot)
+        self.assertIn("(robot diff-wide ", out)
 
 
 if __name__ == "__main__":
