@@ -401,6 +401,10 @@ def cmd_play_check(args):
         args.ticks,
         "--sensor",
         args.sensor,
+        # The model runs at a fraction of real time: play's wall-clock waits for the board
+        # (its resends, its stall check) would otherwise see a board that stopped answering.
+        "--patience",
+        str(args.patience),
     ] + args.play_args
     print("board model: " + " ".join(cmd), file=sys.stderr, flush=True)
     host = subprocess.Popen(cmd)
@@ -474,6 +478,12 @@ def main(argv=None):
     pc.add_argument("--step-ms", type=float, default=2.0)
     pc.add_argument("--cpi", type=float, default=1.0)
     pc.add_argument("-v", "--verbose", action="store_true")
+    pc.add_argument(
+        "--patience",
+        type=int,
+        default=10,
+        help="play's --patience: how many times longer it waits for the boards (default 10)",
+    )
     pc.add_argument("play_args", nargs="*", help="more of play's options, after --")
     _add_reset_args(pc)
     pc.set_defaults(fn=cmd_play_check)

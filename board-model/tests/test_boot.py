@@ -8,19 +8,15 @@ import os
 import sys
 import unittest
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from f103.bench import IMAGES, Bench  # noqa: E402
+from support import MASTER, SLAVE, needs_images, needs_slave  # noqa: E402
+
+from f103.bench import Bench  # noqa: E402
 from f103.core import Chip  # noqa: E402
 
-SLAVE = os.environ.get("BOARD_MODEL_SLAVE", os.path.join(IMAGES, "firmware-slave"))
-MASTER = os.environ.get("BOARD_MODEL_MASTER", os.path.join(IMAGES, "firmware-master"))
 
-
-@unittest.skipUnless(
-    os.path.exists(SLAVE) and os.path.exists(MASTER) or "BOARD_MODEL_SLAVE" in os.environ,
-    "images not built",
-)
+@needs_images
 class TestBoot(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -48,7 +44,7 @@ class TestBoot(unittest.TestCase):
         self.assertGreater(m.spi1.bytes, 128 * 10)  # a frame every 2 ms
 
 
-@unittest.skipUnless(os.path.exists(SLAVE) or "BOARD_MODEL_SLAVE" in os.environ, "images not built")
+@needs_slave
 class TestPanicTrap(unittest.TestCase):
     def test_a_panic_is_recorded_and_halts_the_board(self):
         """The panic entries are BKPT traps patched into the flash image (core.Chip._trap):

@@ -16,41 +16,22 @@ import tempfile
 import unittest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.dirname(HERE))
+sys.path.insert(0, HERE)
 
-from f103.bench import IMAGES, ROOT  # noqa: E402
-
-SLAVE = os.environ.get("BOARD_MODEL_SLAVE", os.path.join(IMAGES, "firmware-slave"))
-MASTER = os.environ.get("BOARD_MODEL_MASTER", os.path.join(IMAGES, "firmware-master"))
-HOST_BENCH = os.environ.get("HOST_BENCH", os.path.join(ROOT, "target", "debug", "host-bench"))
-
-
-def circle_stream(out_dir):
-    """scripts/circle-stream.py's circle, 0.05 laps (0.52 s, 784 ticks); its file's path."""
-    subprocess.run(
-        [
-            sys.executable,
-            os.path.join(ROOT, "scripts", "circle-stream.py"),
-            "--out",
-            out_dir,
-            "--laps",
-            "0.05",
-        ],
-        check=True,
-    )
-    return os.path.join(out_dir, "circle.csv")
-
-
-@unittest.skipUnless(
-    os.path.exists(SLAVE) and os.path.exists(MASTER) or "BOARD_MODEL_SLAVE" in os.environ,
-    "images not built",
+from support import (  # noqa: E402
+    BOARD_MODEL,
+    HOST_BENCH,
+    MASTER,
+    ROOT,
+    SLAVE,
+    circle_stream,
+    needs_host_bench,
+    needs_images,
 )
-# Skipped only where nobody said which host-bench to use: CI sets HOST_BENCH, and then a
-# missing binary fails the test instead of skipping it.
-@unittest.skipUnless(
-    os.path.exists(HOST_BENCH) or "HOST_BENCH" in os.environ,
-    f"{HOST_BENCH} missing: `cargo build -p host-bench` first",
-)
+
+
+@needs_images
+@needs_host_bench
 class TestPlay(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -65,7 +46,7 @@ class TestPlay(unittest.TestCase):
         r = subprocess.run(
             [
                 sys.executable,
-                os.path.join(ROOT, "scripts", "board-model"),
+                BOARD_MODEL,
                 "play-check",
                 "--ticks",
                 self.ticks,

@@ -15,19 +15,23 @@ import tempfile
 import unittest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.dirname(HERE))
+sys.path.insert(0, HERE)
 
-from f103.bench import IMAGES, ROOT  # noqa: E402
-
-SLAVE = os.environ.get("BOARD_MODEL_SLAVE", os.path.join(IMAGES, "firmware-slave"))
-MASTER = os.environ.get("BOARD_MODEL_MASTER", os.path.join(IMAGES, "firmware-master"))
-HOST_BENCH = os.environ.get("HOST_BENCH", os.path.join(ROOT, "target", "debug", "host-bench"))
+from support import (  # noqa: E402
+    BOARD_MODEL,
+    HOST_BENCH,
+    MASTER,
+    SLAVE,
+    needs_host_bench,
+    needs_images,
+    needs_slave,
+)
 
 # from 0.5 s of simulated time: 400 counts forward on the left, 200 backwards on the right
 DRIVE = ["PA0,PA1,0.5,400,4000", "PA8,PA9,0.5,200,2000,rev"]
 
 
-@unittest.skipUnless(os.path.exists(SLAVE) or "BOARD_MODEL_SLAVE" in os.environ, "images not built")
+@needs_slave
 class TestEncoderPins(unittest.TestCase):
     def test_timers_and_exti_count_every_edge(self):
         """The slave image alone: quadrature edges on PA0/PA1 and PA8/PA9 reach TIM2/TIM1 in
@@ -52,22 +56,14 @@ class TestEncoderPins(unittest.TestCase):
         self.assertEqual(slave.faults, [])
 
 
-@unittest.skipUnless(
-    os.path.exists(SLAVE) and os.path.exists(MASTER) or "BOARD_MODEL_SLAVE" in os.environ,
-    "images not built",
-)
-# Skipped only where nobody said which host-bench to use: CI sets HOST_BENCH, and then a
-# missing binary fails the test instead of skipping it.
-@unittest.skipUnless(
-    os.path.exists(HOST_BENCH) or "HOST_BENCH" in os.environ,
-    f"{HOST_BENCH} missing: `cargo build -p host-bench` first",
-)
+@needs_images
+@needs_host_bench
 class TestRecord(unittest.TestCase):
     def test_recorded_counts_are_the_models(self):
         with tempfile.TemporaryDirectory() as d:
             cmd = [
                 sys.executable,
-                os.path.join(ROOT, "scripts", "board-model"),
+                BOARD_MODEL,
                 "serve",
                 "--slave",
                 SLAVE,
@@ -82,7 +78,18 @@ class TestRecord(unittest.TestCase):
                 port = serve.stdout.readline().split("port: ")[1].strip()
                 out = os.path.join(d, "rec.csv")
                 r = subprocess.run(
-                    [HOST_BENCH, "record", "--port", port, "--out", out, "--duration", "6"],
+                    [
+                        HOST_BENCH,
+                        "record",
+                        "--port",
+                        port,
+                        "--patience",
+                        "10",
+                        "--out",
+                        out,
+                        "--duration",
+                        "6",
+                    ],
                     capture_output=True,
                     text=True,
                     timeout=60,

@@ -266,3 +266,36 @@ fn virtual_board_refuses_a_robot_the_slave_board_cannot_read() {
     );
     assert!(out.stdout.is_empty(), "no port is offered");
 }
+
+#[test]
+fn a_patience_out_of_range_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let ticks = dir.path().join("line.csv");
+    let gen = Command::new(BIN)
+        .args(["generate", "--robot", &data("seed001.toml")])
+        .args(["--trajectory", "seed000-line", "--out"])
+        .arg(&ticks)
+        .output()
+        .unwrap();
+    assert!(gen.status.success());
+    for patience in ["0", "101"] {
+        let out = Command::new(BIN)
+            .args([
+                "play",
+                "--port",
+                "/dev/null",
+                "--patience",
+                patience,
+                "--ticks",
+            ])
+            .arg(&ticks)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success());
+        assert!(
+            err.contains("--patience") && err.contains(patience),
+            "{err}"
+        );
+    }
+}

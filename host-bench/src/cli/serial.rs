@@ -24,6 +24,12 @@ pub struct PortArgs {
     /// Bench description [default: ./bench.toml if present].
     #[arg(long, value_name = "FILE")]
     pub bench: Option<PathBuf>,
+    /// Wait this many times longer for the board (1 to 100): the handshake's and each
+    /// setting's 3 s, play's 5 s without progress, the 50 ms before unacknowledged events are
+    /// sent again. For a board slower than real time, such as the chip model
+    /// (`scripts/board-model play-check` passes 10).
+    #[arg(long, value_name = "FACTOR", default_value_t = 1)]
+    pub patience: u32,
 }
 
 impl PortArgs {
@@ -46,7 +52,13 @@ impl PortArgs {
         if baud == 0 {
             bail!("--baud must be positive");
         }
-        Link::open(&port, baud)
+        if !(1..=100).contains(&self.patience) {
+            bail!(
+                "--patience is a factor from 1 to 100: got {}",
+                self.patience
+            );
+        }
+        Ok(Link::open(&port, baud)?.with_patience(self.patience))
     }
 }
 

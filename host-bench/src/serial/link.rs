@@ -39,6 +39,8 @@ pub struct Link {
     inbox: VecDeque<MasterToHost>,
     pub stats: LinkStats,
     pub faults: Faults,
+    /// How many times longer than a board at speed the host waits for this one.
+    patience: u32,
 }
 
 impl Link {
@@ -61,7 +63,19 @@ impl Link {
             inbox: VecDeque::new(),
             stats: LinkStats::default(),
             faults: Faults::default(),
+            patience: 1,
         })
+    }
+
+    /// Wait `patience` times longer for the board (`--patience`).
+    pub fn with_patience(mut self, patience: u32) -> Link {
+        self.patience = patience.max(1);
+        self
+    }
+
+    /// How long to wait for what a board at speed does in `d`.
+    pub fn wait(&self, d: Duration) -> Duration {
+        d * self.patience
     }
 
     pub fn name(&self) -> &str {

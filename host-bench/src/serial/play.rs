@@ -116,7 +116,10 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
 
     let wall = Instant::now();
     let clock = |w: Instant| w.elapsed().as_micros() as u64;
-    let mut tx: GbnSender<SEND_BUFFER> = GbnSender::new(DEFAULT_TIMEOUT_US);
+    let resend_us = link
+        .wait(Duration::from_micros(DEFAULT_TIMEOUT_US))
+        .as_micros() as u64;
+    let mut tx: GbnSender<SEND_BUFFER> = GbnSender::new(resend_us);
     let mut rx: GbnReceiver<4096> = GbnReceiver::new();
     let mut wire = stream.bytes();
     // Bytes made and not yet taken by the sender: `out[out_at..]`.
@@ -145,7 +148,7 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
             link.send(&HostToMaster::Events(frame))?;
         }
         let Some(msg) = link.recv(Duration::from_millis(5))? else {
-            if last_progress.elapsed() > STALL {
+            if last_progress.elapsed() > link.wait(STALL) {
                 bail!(
                     "the board stopped answering after {updates} of {} updates ({} of {} event \
                      bytes acknowledged)",

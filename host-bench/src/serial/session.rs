@@ -32,7 +32,7 @@ pub fn info(link: &mut Link) -> Result<BoardInfo> {
 }
 
 fn ask(link: &mut Link, question: &HostToMaster) -> Result<BoardInfo> {
-    let deadline = Instant::now() + ANSWER_TIMEOUT;
+    let deadline = Instant::now() + link.wait(ANSWER_TIMEOUT);
     while Instant::now() < deadline {
         link.send(question)?;
         let wait_until = Instant::now() + Duration::from_millis(300);
@@ -58,7 +58,7 @@ fn ask(link: &mut Link, question: &HostToMaster) -> Result<BoardInfo> {
         "no answer from a master on {} within {} s ({} bytes received, {} frames rejected): \
          is the master powered and flashed, and is the baud rate right?",
         link.name(),
-        ANSWER_TIMEOUT.as_secs(),
+        link.wait(ANSWER_TIMEOUT).as_secs(),
         link.stats.bytes_received,
         link.stats.frames_rejected
     )
@@ -96,12 +96,12 @@ fn send_until(
     what: &str,
     mut done: impl FnMut(&BoardInfo) -> bool,
 ) -> Result<BoardInfo> {
-    let deadline = Instant::now() + ANSWER_TIMEOUT;
+    let deadline = Instant::now() + link.wait(ANSWER_TIMEOUT);
     loop {
         for c in commands {
             link.send(&HostToMaster::Slave(*c))?;
         }
-        let resend_at = Instant::now() + RESEND_AFTER;
+        let resend_at = Instant::now() + link.wait(RESEND_AFTER);
         loop {
             std::thread::sleep(Duration::from_millis(20));
             let info = info(link)?;
