@@ -17,7 +17,8 @@
 //! Floats: a baseline for the host (and the slave can run it on request, slowly).
 
 use crate::carriage::CarriageGeometry;
-use crate::wheelset::WheelSolver;
+use crate::wheel::Wheel;
+use crate::wheelset::{GeometryError, WheelSolver};
 use crate::Pose2;
 
 /// The arc algorithm over any solvable wheel layout.
@@ -36,17 +37,49 @@ impl ArcOdometry {
         start: Pose2,
         counts: &[f64],
     ) -> Self {
-        let n = solver.wheels();
-        let mut k = [0.0; crate::wheelset::MAX_WHEELS];
-        let mut last = [0.0; crate::wheelset::MAX_WHEELS];
-        k[..n].copy_from_slice(&metres_per_count[..n]);
-        last[..n].copy_from_slice(&counts[..n]);
-        ArcOdometry {
+        let mut arc = ArcOdometry {
             solver,
-            k,
-            last,
-            pose: start,
-        }
+            ..Self::EMPTY
+        };
+        arc.begin(metres_per_count, start, counts);
+        arc
+    }
+
+    /// No wheels, at the origin: what [`init_from_wheels`](Self::init_from_wheels) fills
+    /// where the state lives.
+    pub(crate) const EMPTY: ArcOdometry = ArcOdometry {
+        solver: WheelSolver::EMPTY,
+        k: [0.0; crate::wheelset::MAX_WHEELS],
+        last: [0.0; crate::wheelset::MAX_WHEELS],
+        pose: Pose2 {
+            x: 0.0,
+            y: 0.0,
+            theta: 0.0,
+        },
+    };
+
+    /// [`new`](Self::new) with the solver of `wheels`, written where the state lives (a
+    /// board's stack would hold each 0.5 KB pass through a builder). On `Err` the state is
+    /// not usable.
+    pub(crate) fn init_from_wheels(
+        &mut self,
+        wheels: &[Wheel],
+        metres_per_count: &[f64],
+        start: Pose2,
+        counts: &[f64],
+    ) -> Result<(), GeometryError> {
+        self.solver.init(wheels)?;
+        self.begin(metres_per_count, start, counts);
+        Ok(())
+    }
+
+    fn begin(&mut self, metres_per_count: &[f64], start: Pose2, counts: &[f64]) {
+        let n = self.solver.wheels();
+        self.k = [0.0; crate::wheelset::MAX_WHEELS];
+        self.last = [0.0; crate::wheelset::MAX_WHEELS];
+        self.k[..n].copy_from_slice(&metres_per_count[..n]);
+        self.last[..n].copy_from_slice(&counts[..n]);
+        self.pose = start;
     }
 
     /// One sampling period ending with the encoders at `counts` (cumulative).
@@ -91,7 +124,6 @@ impl CarriageArc {
         counts: [f64; 2],
         abs_code: u16,
     ) -> Option<Self> {
-        use crate::wheel::Wheel;
         let half = geom.wheel_base / 2.0;
         let solver =
             WheelSolver::new(&[Wheel::at(0.0, half, 0.0), Wheel::at(0.0, -half, 0.0)]).ok()?;

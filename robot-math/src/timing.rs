@@ -110,25 +110,50 @@ impl TimingOdometry {
     /// # Panics
     /// If `metres_per_count` does not have one entry per wheel of `solver`.
     pub fn new(solver: WheelSolver, metres_per_count: &[f64], start: Pose2) -> Self {
-        let n = solver.wheels();
+        let mut t = TimingOdometry {
+            solver,
+            ..Self::EMPTY
+        };
+        t.begin(metres_per_count, start);
+        t
+    }
+
+    /// No wheels, at rest at the origin: what [`init_from_wheels`](Self::init_from_wheels)
+    /// fills where the state lives.
+    pub(crate) const EMPTY: TimingOdometry = TimingOdometry {
+        solver: WheelSolver::EMPTY,
+        n: 0,
+        delta: [0.0; MAX_WHEELS],
+        wheels: [WheelTiming {
+            last_t: None,
+            interval: None,
+            dir: 0,
+            since_tick: 0.0,
+        }; MAX_WHEELS],
+        t_now: None,
+        r_body: (0.0, 0.0),
+        px: 0.0,
+        py: 0.0,
+        theta: 0.0,
+    };
+
+    /// Everything but the solver, as [`new`](Self::new) sets it.
+    fn begin(&mut self, metres_per_count: &[f64], start: Pose2) {
+        let n = self.solver.wheels();
         assert_eq!(
             metres_per_count.len(),
             n,
             "one travel per count for each wheel"
         );
-        let mut delta = [0.0; MAX_WHEELS];
-        delta[..n].copy_from_slice(metres_per_count);
-        TimingOdometry {
-            solver,
-            n,
-            delta,
-            wheels: [WheelTiming::default(); MAX_WHEELS],
-            t_now: None,
-            r_body: (0.0, 0.0),
-            px: start.x,
-            py: start.y,
-            theta: start.theta,
-        }
+        self.n = n;
+        self.delta = [0.0; MAX_WHEELS];
+        self.delta[..n].copy_from_slice(metres_per_count);
+        self.wheels = [WheelTiming::default(); MAX_WHEELS];
+        self.t_now = None;
+        self.r_body = (0.0, 0.0);
+        self.px = start.x;
+        self.py = start.y;
+        self.theta = start.theta;
     }
 
     /// Seed 000 as published: the solver of `wheels`, integrating wheel A's point
@@ -141,12 +166,24 @@ impl TimingOdometry {
         metres_per_count: &[f64],
         start: Pose2,
     ) -> Result<Self, GeometryError> {
-        let solver = WheelSolver::new(wheels)?;
-        // Changed in place, not by `with_tracked_point`: each pass of the 0.9 KB value
-        // through a builder is a copy on a board's stack (the slave with its baselines).
-        let mut t = Self::new(solver, metres_per_count, start);
-        t.track_point(wheels[0].x, wheels[0].y);
+        let mut t = Self::EMPTY;
+        t.init_from_wheels(wheels, metres_per_count, start)?;
         Ok(t)
+    }
+
+    /// [`from_wheels`](Self::from_wheels) written where the state lives: each pass of the
+    /// 0.9 KB value through a builder would be a copy on a board's stack (the slave with its
+    /// baselines). On `Err` the state is not usable.
+    pub(crate) fn init_from_wheels(
+        &mut self,
+        wheels: &[Wheel],
+        metres_per_count: &[f64],
+        start: Pose2,
+    ) -> Result<(), GeometryError> {
+        self.solver.init(wheels)?;
+        self.begin(metres_per_count, start);
+        self.track_point(wheels[0].x, wheels[0].y);
+        Ok(())
     }
 
     /// Integrate the body point `(x, y)` (body frame, metres) instead of the origin, as the

@@ -47,17 +47,36 @@ pub struct WheelSolver {
 }
 
 impl WheelSolver {
+    /// A solver of no wheels: what [`init`](Self::init) fills where the solver lives.
+    pub(crate) const EMPTY: WheelSolver = WheelSolver {
+        mode: SolveMode::Exact,
+        n: 0,
+        rows: [[0.0; 3]; MAX_WHEELS],
+        pinv: [[0.0; MAX_WHEELS]; 3],
+    };
+
     pub fn new(wheels: &[Wheel]) -> Result<Self, GeometryError> {
+        let mut solver = Self::EMPTY;
+        solver.init(wheels)?;
+        Ok(solver)
+    }
+
+    /// [`new`](Self::new) written where the solver lives: a board's float baselines build
+    /// theirs inside their static state, and a 392 B value returned through the builders is
+    /// a copy on the stack at each step. On `Err` the solver has no wheels.
+    pub(crate) fn init(&mut self, wheels: &[Wheel]) -> Result<(), GeometryError> {
         let n = wheels.len();
+        self.n = 0;
         if !(2..=MAX_WHEELS).contains(&n) {
             return Err(GeometryError::WheelCount(n));
         }
-        let mut rows = [[0.0; 3]; MAX_WHEELS];
-        for (r, w) in rows.iter_mut().zip(wheels) {
+        self.rows = [[0.0; 3]; MAX_WHEELS];
+        for (r, w) in self.rows.iter_mut().zip(wheels) {
             *r = w.row();
         }
-        let mut pinv = [[0.0; MAX_WHEELS]; 3];
-        let mode = match n {
+        self.pinv = [[0.0; MAX_WHEELS]; 3];
+        let (rows, pinv) = (&self.rows, &mut self.pinv);
+        self.mode = match n {
             2 => {
                 let (a, b) = (wheels[0], wheels[1]);
                 // Parallel rolling directions, offset across them.
@@ -113,12 +132,8 @@ impl WheelSolver {
                 }
             }
         };
-        Ok(WheelSolver {
-            mode,
-            n,
-            rows,
-            pinv,
-        })
+        self.n = n;
+        Ok(())
     }
 
     pub fn mode(&self) -> SolveMode {

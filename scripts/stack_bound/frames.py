@@ -40,6 +40,26 @@ def const_of(img, f, i, reg, depth=0):
     return set().union(*vals) if defs and all(vals) else None
 
 
+def const_from_callers(img, f, k, reg):
+    """The constant(s) reg holds at f.insns[k] when f is a machine-outlined function that does not
+    write reg before k: the union of what each caller's `bl f` leaves in it, or None if any
+    caller's value is unknown. LLVM's outliner moves a call's argument set-up, `bx rN` included,
+    into such a function, the target still loaded by the caller."""
+    if not f.name.startswith("OUTLINED_FUNCTION") or any(
+        reg in writes(m, o) for a, m, o, r in f.insns[:k]
+    ):
+        return None
+    vals = set()
+    for g in img.funcs.values():
+        for j, (a, m, o, r) in enumerate(g.insns):
+            if r == f.start and CALL.match(m) and g is not f:
+                v = const_of(img, g, j, reg)
+                if not v:
+                    return None
+                vals |= v
+    return vals or None
+
+
 def load_slot(img, f, k):
     """Offset k of the `ldr rN, [rM, #k]` that loaded the register f.insns[k] calls, or None."""
     reg = f.insns[k][2]
@@ -122,6 +142,8 @@ def step(img, f, k):
         flow = img.funcs.get(ref) is None or callee_returns(img, img.funcs[ref])
     elif b == "blx" or (b == "bx" and ops != "lr") or re.match(r"^pc, (?!\[sp|lr$)", ops):
         vals = const_of(img, f, k, ops) if re.match(r"^r\d+$", ops) else None
+        if vals is None and re.match(r"^r\d+$", ops):
+            vals = const_from_callers(img, f, k, ops)
         exit_, targets = "icall" if b == "blx" else "ijump", (
             [v & ~1 for v in vals] if vals else None
         )

@@ -131,14 +131,45 @@ impl LutOdometry {
         start: Pose2,
         origin_lsb: (u32, u32),
     ) -> Self {
+        let mut me = Self::EMPTY;
+        me.init(metres_per_count, track_m, start, origin_lsb);
+        me
+    }
+
+    /// Zero tables at the square's corner: what [`init`](Self::init) fills where the state
+    /// lives.
+    pub(crate) const EMPTY: LutOdometry = LutOdometry {
+        cos_tab: [0; 90],
+        sin_tab: [0; 90],
+        x: 0,
+        y: 0,
+        hq: 0,
+        lo: 0,
+        hi: 0,
+        width: 0,
+        deg: 0,
+        origin: (0, 0),
+        beta: 0.0,
+        half_track: 0.0,
+        step_m: 0.0,
+    };
+
+    /// [`with_origin_offset`](Self::with_origin_offset) written where the state lives (a
+    /// board's static odometry state: each 0.8 KB pass through a builder would be a copy on
+    /// its stack).
+    pub(crate) fn init(
+        &mut self,
+        metres_per_count: f64,
+        track_m: f64,
+        start: Pose2,
+        origin_lsb: (u32, u32),
+    ) {
         let step_m = metres_per_count;
         let beta = step_m / track_m; // eq. 7: 360°/n with n = 2πL/ℓ
-        let mut cos_tab = [0u32; 90];
-        let mut sin_tab = [0u32; 90];
         for i in 0..90 {
             let a = i as f64 * PI / 180.0;
-            cos_tab[i] = libm::round(step_m * crate::trig::cos(a) / RESOLUTION_M) as u32;
-            sin_tab[i] = libm::round(step_m * crate::trig::sin(a) / RESOLUTION_M) as u32;
+            self.cos_tab[i] = libm::round(step_m * crate::trig::cos(a) / RESOLUTION_M) as u32;
+            self.sin_tab[i] = libm::round(step_m * crate::trig::sin(a) / RESOLUTION_M) as u32;
         }
         // Heading: steps (with the start's fraction) in 2^-32 units; degree buckets of
         // (1° / β) steps.
@@ -149,7 +180,6 @@ impl LutOdometry {
         let width = libm::round(width_steps * STEP_Q as f64) as i64;
         let k = libm::floor(hq as f64 / width as f64 + 0.5) as i64;
         let lo = libm::round((k as f64 - 0.5) * width as f64) as i64;
-        let deg = k.rem_euclid(360) as u16;
         let half_track = track_m / 2.0;
         let (s, c) = (crate::trig::sin(start.theta), crate::trig::cos(start.theta));
         // The right wheel sits at (0, −L/2) in the body frame.
@@ -158,23 +188,18 @@ impl LutOdometry {
         let to_lsb = |v: f64, o: u32| -> u32 {
             (libm::round(v / RESOLUTION_M) as i64).wrapping_add(o as i64) as u32
         };
-        let mut me = LutOdometry {
-            cos_tab,
-            sin_tab,
-            x: to_lsb(rx, origin_lsb.0),
-            y: to_lsb(ry, origin_lsb.1),
-            hq,
-            lo,
-            hi: lo + width,
-            width,
-            deg,
-            origin: origin_lsb,
-            beta,
-            half_track,
-            step_m,
-        };
-        me.settle_degree();
-        me
+        self.x = to_lsb(rx, origin_lsb.0);
+        self.y = to_lsb(ry, origin_lsb.1);
+        self.hq = hq;
+        self.lo = lo;
+        self.hi = lo + width;
+        self.width = width;
+        self.deg = k.rem_euclid(360) as u16;
+        self.origin = origin_lsb;
+        self.beta = beta;
+        self.half_track = half_track;
+        self.step_m = step_m;
+        self.settle_degree();
     }
 
     /// Move the degree bucket until it holds `hq`. Compare, add, subtract only.

@@ -13,7 +13,7 @@ use crate::wheelset::GeometryError;
 #[cfg(any(test, feature = "float-methods"))]
 mod float_methods;
 #[cfg(any(test, feature = "float-methods"))]
-use float_methods::FloatState;
+use float_methods::{FloatMethod, FloatState};
 
 /// The running method's state. One at a time; the float methods are the big ones (their wheel
 /// solvers), which is RAM spent once, not per update.
@@ -246,11 +246,11 @@ impl Odometry {
         match method {
             Method::Exact => self.start_exact(body, t_ns),
             #[cfg(any(test, feature = "float-methods"))]
-            Method::Arc => self.start_float(t_ns, |o| FloatState::arc(o, body)),
+            Method::Arc => self.start_float(FloatMethod::Arc, body, t_ns),
             #[cfg(any(test, feature = "float-methods"))]
-            Method::Lut => self.start_float(t_ns, |o| FloatState::lut(o, body)),
+            Method::Lut => self.start_float(FloatMethod::Lut, body, t_ns),
             #[cfg(any(test, feature = "float-methods"))]
-            Method::Timing => self.start_float(t_ns, |o| FloatState::timing(o, body)),
+            Method::Timing => self.start_float(FloatMethod::Timing, body, t_ns),
             #[cfg(not(any(test, feature = "float-methods")))]
             Method::Arc | Method::Lut | Method::Timing => Err(Unsupported::FloatMethodsNotBuilt),
         }

@@ -449,11 +449,20 @@ fn unsupported_cases_are_refused_with_a_reason() {
         None,
     )
     .unwrap();
+    let mut untouched = odo.clone();
     assert_eq!(
         odo.switch(Method::Timing, 5),
         Err(Unsupported::TimingNeedsTicks)
     );
     assert_eq!(odo.method(), Method::Arc);
+    // ... and its state: the float states are written where they live, so the refusal must
+    // come before anything is written.
+    untouched.update(5);
+    let mut refused = odo.clone();
+    for o in [&mut refused, &mut untouched] {
+        o.set_counts(&[400, 380]);
+    }
+    assert_eq!(refused.update(15), untouched.update(15));
     // Readings of the other sensor kind, unknown encoders and corrupt steps move nothing.
     odo.tick(10, 0, 1);
     let mut ticks = Odometry::new(

@@ -59,60 +59,6 @@ impl LutTables {
 }
 
 impl FloatState {
-    /// Seed 002's `arc`, from `body` at the current counts.
-    pub(super) fn arc(odo: &Odometry, body: FixedPose) -> Result<FloatState, Unsupported> {
-        let n = odo.layout.encoders();
-        let (solver, start) = odo.float_start(body)?;
-        let counts_f64 = odo.counts.map(|c| c as f64);
-        let k = &odo.layout.metres_per_count()[..n];
-        Ok(FloatState::Arc(ArcOdometry::new(
-            solver,
-            k,
-            start,
-            &counts_f64[..n],
-        )))
-    }
-
-    /// Seed 001's `lut`: its own tables on a differential drive, per-wheel tables elsewhere.
-    pub(super) fn lut(odo: &Odometry, body: FixedPose) -> Result<FloatState, Unsupported> {
-        let (solver, start) = odo.float_start(body)?;
-        let tables = match odo.layout.differential_drive() {
-            Some((step, track)) => LutTables::Differential(LutOdometry::with_origin_offset(
-                step,
-                track,
-                start,
-                odo.lut_origin,
-            )),
-            None => odo.lut_wheels(&solver, start)?,
-        };
-        Ok(FloatState::Lut(Lut {
-            tables,
-            applied: odo.counts,
-        }))
-    }
-
-    /// Seed 000's `timing` (it needs every tick's time stamp); its integration starts at
-    /// [`started`](Self::started).
-    pub(super) fn timing(odo: &Odometry, body: FixedPose) -> Result<FloatState, Unsupported> {
-        if odo.sensors != SensorKind::Ticks {
-            return Err(Unsupported::TimingNeedsTicks);
-        }
-        let n = odo.layout.encoders();
-        let (_, start) = odo.float_start(body)?;
-        let k = &odo.layout.metres_per_count()[..n];
-        TimingOdometry::from_wheels(&odo.layout.wheels()[..n], k, start)
-            .map(FloatState::Timing)
-            .map_err(Unsupported::Geometry)
-    }
-
-    /// In place, once started at `t_ns`: `timing`'s integration starts here, every wheel
-    /// taken to sit on an edge now.
-    fn started(&mut self, t_ns: u64) {
-        if let FloatState::Timing(t) = self {
-            t.update(t_ns);
-        }
-    }
-
     /// A tick already counted by [`Odometry::tick`], for the methods whose input is ticks.
     pub(super) fn tick(&mut self, t_ns: u64, encoder: usize, step: i8) {
         match self {
@@ -128,21 +74,115 @@ impl FloatState {
     }
 }
 
+/// A float baseline to start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum FloatMethod {
+    Arc,
+    Lut,
+    Timing,
+}
+
 impl Odometry {
-    /// Run the float method `build` makes; on `Err` the running state is kept. Out of line,
-    /// and one copy per method: a board with the baselines holds one method's temporaries at
-    /// a time on its stack.
-    #[inline(never)]
+    /// Run `method` from `body` with the current readings at `t_ns`; on `Err` the running
+    /// state is kept: whatever can refuse the method is checked before the state is touched.
+    /// The state is then written where it lives, never returned by value: each 0.5 to 0.9 KB
+    /// pass of a float state through a builder would be a copy on a board's stack (the slave
+    /// with its baselines). Each method's writer is out of line, so a board's stack holds one
+    /// method's temporaries at a time.
     pub(super) fn start_float(
         &mut self,
+        method: FloatMethod,
+        body: FixedPose,
         t_ns: u64,
-        build: impl FnOnce(&Odometry) -> Result<FloatState, Unsupported>,
     ) -> Result<(), Unsupported> {
-        self.state = State::Float(build(self)?);
-        if let State::Float(f) = &mut self.state {
-            f.started(t_ns);
+        if method == FloatMethod::Timing && self.sensors != SensorKind::Ticks {
+            return Err(Unsupported::TimingNeedsTicks);
+        }
+        self.check_solver()?;
+        let start = self.float_start(body);
+        match method {
+            FloatMethod::Arc => self.start_arc(start)?,
+            FloatMethod::Lut => self.start_lut(start)?,
+            FloatMethod::Timing => self.start_timing(start, t_ns)?,
         }
         self.state_changed();
+        Ok(())
+    }
+
+    /// Whether the float methods' wheel solver takes this layout (a solver built and
+    /// dropped: out of line, its temporaries are gone before a state is written).
+    #[inline(never)]
+    fn check_solver(&self) -> Result<(), Unsupported> {
+        self.layout
+            .solver()
+            .map(|_| ())
+            .map_err(Unsupported::Geometry)
+    }
+
+    /// Seed 002's `arc`, from `start` at the current counts.
+    #[inline(never)]
+    fn start_arc(&mut self, start: Pose2) -> Result<(), Unsupported> {
+        let n = self.layout.encoders();
+        let counts = self.counts.map(|c| c as f64);
+        let layout = &self.layout;
+        self.state = State::Float(FloatState::Arc(ArcOdometry::EMPTY));
+        let State::Float(FloatState::Arc(arc)) = &mut self.state else {
+            return Err(Unsupported::FloatMethodsNotBuilt);
+        };
+        arc.init_from_wheels(
+            &layout.wheels()[..n],
+            &layout.metres_per_count()[..n],
+            start,
+            &counts[..n],
+        )
+        .map_err(Unsupported::Geometry)
+    }
+
+    /// Seed 001's `lut`: its own tables on a differential drive, per-wheel tables elsewhere.
+    #[inline(never)]
+    fn start_lut(&mut self, start: Pose2) -> Result<(), Unsupported> {
+        let Some((step, track)) = self.layout.differential_drive() else {
+            let tables = self.lut_wheels(start)?;
+            self.state = State::Float(FloatState::Lut(Lut {
+                tables,
+                applied: self.counts,
+            }));
+            return Ok(());
+        };
+        self.state = State::Float(FloatState::Lut(Lut {
+            tables: LutTables::Differential(LutOdometry::EMPTY),
+            applied: [0; MAX_ENCODERS],
+        }));
+        let State::Float(FloatState::Lut(Lut {
+            tables: LutTables::Differential(tables),
+            applied,
+        })) = &mut self.state
+        else {
+            return Err(Unsupported::FloatMethodsNotBuilt);
+        };
+        *applied = self.counts;
+        tables.init(step, track, start, self.lut_origin);
+        Ok(())
+    }
+
+    /// Seed 000's `timing` (it needs every tick's time stamp); its integration starts at
+    /// `t_ns`, every wheel taken to sit on an edge then.
+    #[inline(never)]
+    fn start_timing(&mut self, start: Pose2, t_ns: u64) -> Result<(), Unsupported> {
+        let n = self.layout.encoders();
+        let layout = &self.layout;
+        self.state = State::Float(FloatState::Timing(TimingOdometry::EMPTY));
+        let State::Float(FloatState::Timing(timing)) = &mut self.state else {
+            return Err(Unsupported::FloatMethodsNotBuilt);
+        };
+        timing
+            .init_from_wheels(
+                &layout.wheels()[..n],
+                &layout.metres_per_count()[..n],
+                start,
+            )
+            .map_err(Unsupported::Geometry)?;
+        timing.update(t_ns);
         Ok(())
     }
 
@@ -174,38 +214,27 @@ impl Odometry {
         self.pose
     }
 
-    /// The float methods' solver and start pose: they integrate the carriage frame with a
-    /// carriage, the body otherwise.
-    fn float_start(
-        &self,
-        body: FixedPose,
-    ) -> Result<(crate::wheelset::WheelSolver, Pose2), Unsupported> {
-        let solver = self.layout.solver().map_err(Unsupported::Geometry)?;
-        let start = match self.layout.carriage_geometry() {
+    /// The float methods' start pose: they integrate the carriage frame with a carriage,
+    /// the body otherwise.
+    fn float_start(&self, body: FixedPose) -> Pose2 {
+        match self.layout.carriage_geometry() {
             Some(g) => g.carriage_pose(body.to_pose2(), g.swivel_angle(self.abs)),
             None => body.to_pose2(),
-        };
-        Ok((solver, start))
+        }
     }
 
+    /// Per-wheel tables (host builds: 360 entries a wheel), built by value.
     #[cfg(feature = "lut-n")]
-    fn lut_wheels(
-        &self,
-        solver: &crate::wheelset::WheelSolver,
-        start: Pose2,
-    ) -> Result<LutTables, Unsupported> {
+    fn lut_wheels(&self, start: Pose2) -> Result<LutTables, Unsupported> {
+        let solver = self.layout.solver().map_err(Unsupported::Geometry)?;
         let k = &self.layout.metres_per_count()[..self.layout.encoders()];
-        crate::lut::LutN::new(solver, k, start, self.lut_origin)
+        crate::lut::LutN::new(&solver, k, start, self.lut_origin)
             .map(LutTables::Wheels)
             .map_err(Unsupported::LutLayout)
     }
 
     #[cfg(not(feature = "lut-n"))]
-    fn lut_wheels(
-        &self,
-        _solver: &crate::wheelset::WheelSolver,
-        _start: Pose2,
-    ) -> Result<LutTables, Unsupported> {
+    fn lut_wheels(&self, _start: Pose2) -> Result<LutTables, Unsupported> {
         Err(Unsupported::LutTablesNotBuilt)
     }
 }
