@@ -61,7 +61,7 @@ impl ArcOdometry {
     /// [`new`](Self::new) with the solver of `wheels`, written where the state lives (a
     /// board's stack would hold each 0.5 KB pass through a builder). On `Err` the state is
     /// not usable.
-    pub(crate) fn init_from_wheels(
+    pub fn init_from_wheels(
         &mut self,
         wheels: &[Wheel],
         metres_per_count: &[f64],
