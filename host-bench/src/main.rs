@@ -125,6 +125,16 @@ enum Command {
         /// distance) and each method's track (truth, estimate, error per truth row) as CSV.
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Where the encoders put their edges: `ideal` (one count apart), or Broadcom
+        /// HEDS-9040's datasheet errors, `typical` or `max`, each seed's encoders drawn from
+        /// them (docs/odometry.md, "Encoders as they are"); `typical-cycle` and `max-cycle`
+        /// without the errors over a revolution and the capture latency.
+        #[arg(
+            long,
+            value_name = "ideal|typical|max|typical-cycle|max-cycle",
+            default_value = "ideal"
+        )]
+        edges: String,
     },
     /// Seed 003's speed envelope of the three-omni drive: top translation speed in every
     /// direction and with spin, from the model and driven flat out on the simulated robot,
@@ -363,7 +373,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Accuracy { json, out, seeds } => cli::analyse::run_accuracy(json, out, seeds),
+        Command::Accuracy {
+            json,
+            out,
+            seeds,
+            edges,
+        } => cli::analyse::run_accuracy(json, out, seeds, &edges),
         Command::Envelope { json, out } => cli::envelope::run_envelope(json, out),
         Command::PursuitSweep {
             json,

@@ -8,7 +8,9 @@ use host_bench::sim::trajectory;
 
 fn results() -> &'static [CaseResult] {
     static R: OnceLock<Vec<CaseResult>> = OnceLock::new();
-    R.get_or_init(|| accuracy::run(accuracy::DEFAULT_SEEDS, |_| {}).expect("accuracy runs"))
+    R.get_or_init(|| {
+        accuracy::run(accuracy::DEFAULT_SEEDS, Default::default(), |_| {}).expect("accuracy runs")
+    })
 }
 
 fn exact(c: &CaseResult) -> &MethodSpread {

@@ -9,8 +9,14 @@ use host_bench::formats::atomic::{check_output, OutputDir, Staged};
 /// Most power-on seeds per accuracy case (each case replays every method once per seed).
 pub const MAX_ACCURACY_SEEDS: u64 = 1000;
 
-pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Result<()> {
+pub fn run_accuracy(
+    json: bool,
+    out: Option<PathBuf>,
+    seeds: u64,
+    edges: &str,
+) -> anyhow::Result<()> {
     use host_bench::eval::accuracy;
+    let edges = host_bench::sim::generate::EdgeErrors::preset(edges)?;
     anyhow::ensure!(
         (1..=MAX_ACCURACY_SEEDS).contains(&seeds),
         "--seeds must be 1 to {MAX_ACCURACY_SEEDS}, got {seeds}"
@@ -27,7 +33,7 @@ pub fn run_accuracy(json: bool, out: Option<PathBuf>, seeds: u64) -> anyhow::Res
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let results = accuracy::run(seeds, |label| {
+    let results = accuracy::run(seeds, edges, |label| {
         bar.set_message(label.to_string());
         bar.inc(1);
     })?;

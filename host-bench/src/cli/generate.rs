@@ -33,9 +33,20 @@ pub struct GenerateArgs {
     /// fraction of a count in [0, 1) for every encoder.
     #[arg(long, value_name = "random|zero|FRACTION", default_value = "random")]
     pub phase: String,
-    /// Seed of the random phases [default: 0]; only with --phase random.
+    /// Seed of the random phases [default: 0]; only with --phase random. It draws each
+    /// encoder's edges too (with --edges typical or max).
     #[arg(long, value_name = "N")]
     pub seed: Option<u64>,
+    /// Where the encoders put their edges: `ideal` (one count apart), or Broadcom HEDS-9040's
+    /// datasheet errors, `typical` or `max` (state widths, phase, cycle and position errors,
+    /// capture latency: docs/odometry.md, "Encoders as they are"); `typical-cycle` and
+    /// `max-cycle` without the errors over a revolution and the latency.
+    #[arg(
+        long,
+        value_name = "ideal|typical|max|typical-cycle|max-cycle",
+        default_value = "ideal"
+    )]
+    pub edges: String,
 }
 
 /// `--phase` and `--seed` as a [`PowerOnPhase`].
@@ -93,6 +104,7 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
         );
     }
     let phase = power_on_phase(&a.phase, a.seed)?;
+    let edges = generate::EdgeErrors::preset(&a.edges)?;
     let robot = Robot::load(&robot_path)?;
     let named = traj::named(&name).ok_or_else(|| {
         anyhow::anyhow!("unknown trajectory {name:?}; `host-bench generate --list` names them")
@@ -110,6 +122,7 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
             truth_rate_hz: a.truth_rate,
             abs_rate_hz: a.abs_rate,
             phase,
+            edges,
         },
     )?;
     tickstream::write(&out, &stream)?;
@@ -119,7 +132,7 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
         .filter(|e| matches!(e, tickstream::Event::Tick { .. }))
         .count();
     eprintln!(
-        "wrote {} ({} events, {} ticks, {:.3} s of {}, power-on phase {phase})",
+        "wrote {} ({} events, {} ticks, {:.3} s of {}, power-on phase {phase}, edges {edges})",
         out.display(),
         stream.events.len(),
         ticks,

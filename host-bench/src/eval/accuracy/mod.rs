@@ -20,7 +20,7 @@ use serde::Serialize;
 use crate::eval::replay::{self, Mode, Score};
 use crate::formats::robot::Robot;
 use crate::formats::tickstream::TickStream;
-use crate::sim::generate::{generate_phases, GenerateOptions, PowerOnPhase};
+use crate::sim::generate::{generate_phases, EdgeErrors, GenerateOptions, PowerOnPhase};
 use crate::sim::trajectory::{self, Trajectory};
 
 pub mod moving;
@@ -203,6 +203,9 @@ pub struct CaseResult {
     /// Power-on seeds run (0, 1, ... seeds − 1), and how the phases were drawn.
     pub seeds: u64,
     pub phase: String,
+    /// Where the encoders put their edges ([`EdgeErrors`]: ideal, or a datasheet's column),
+    /// each seed's encoders drawn from it.
+    pub edges: String,
     pub start: Start,
     pub algorithms: Vec<MethodSpread>,
     /// Over the seeds, the smallest ratio of the best baseline's median error to `exact`'s
@@ -260,9 +263,14 @@ struct Run {
     vs_f64: (f64, f64),
 }
 
-/// Run every case in every mode over `seeds` power-on seeds (on every core). `progress` is
-/// called after each (case, seed) with a label.
-pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResult>> {
+/// Run every case in every mode over `seeds` power-on seeds (on every core), the encoders'
+/// edges placed as `edges` says (each seed's drawn from it). `progress` is called after each
+/// (case, seed) with a label.
+pub fn run(
+    seeds: u64,
+    edges: EdgeErrors,
+    progress: impl FnMut(&str) + Send,
+) -> Result<Vec<CaseResult>> {
     let seeds = seeds.max(1);
     let cases = cases();
     let mut loaded = Vec::new();
@@ -289,7 +297,7 @@ pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResu
                     break;
                 }
                 let c = job;
-                let out = run_case(&cases[c], &loaded[c], seeds);
+                let out = run_case(&cases[c], &loaded[c], seeds, edges);
                 if let Ok(mut d) = done.lock() {
                     d[job] = Some(out);
                 }
@@ -312,7 +320,9 @@ pub fn run(seeds: u64, progress: impl FnMut(&str) + Send) -> Result<Vec<CaseResu
         let traj = trajectory::build(case.trajectory).context("built above")?;
         for (m, mode) in modes().into_iter().enumerate() {
             let runs: Vec<&Run> = per_seed.iter().map(|r| &r[m]).collect();
-            results.push(aggregate(case, robot, traj.as_ref(), mode, seeds, &runs)?);
+            let mut r = aggregate(case, robot, traj.as_ref(), mode, seeds, &runs)?;
+            r.edges = edges.to_string();
+            results.push(r);
         }
     }
     Ok(results)
@@ -326,7 +336,7 @@ const SEEDS_PER_PASS: u64 = 8;
 
 /// Seeds `0..seeds` of `case`: their streams, generated [`SEEDS_PER_PASS`] at a time (a
 /// seed's stream is the same whichever pass makes it), each replayed in every mode.
-fn run_case(case: &Case, robot: &Robot, seeds: u64) -> Result<CaseRuns> {
+fn run_case(case: &Case, robot: &Robot, seeds: u64, edges: EdgeErrors) -> Result<CaseRuns> {
     let traj = trajectory::build(case.trajectory)
         .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
     let mut runs = Vec::new();
@@ -338,7 +348,10 @@ fn run_case(case: &Case, robot: &Robot, seeds: u64) -> Result<CaseRuns> {
             robot,
             Some(&format!("../robots/{}", case.robot)),
             traj.as_ref(),
-            &GenerateOptions::default(),
+            &GenerateOptions {
+                edges,
+                ..GenerateOptions::default()
+            },
             &phases,
         )
         .with_context(|| format!("generating {} for {}", case.trajectory, robot.name))?;
@@ -431,6 +444,7 @@ fn aggregate(
         paper: case.paper_figure.into(),
         seeds,
         phase: "random".into(),
+        edges: EdgeErrors::IDEAL.to_string(),
         start: case.start,
         algorithms,
         exact_advantage_worst_seed: advantage,

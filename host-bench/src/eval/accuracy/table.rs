@@ -9,9 +9,10 @@ use crate::eval::replay;
 pub fn table(results: &[CaseResult]) -> String {
     let mut out = String::new();
     let seeds = results.first().map_or(0, |r| r.seeds);
+    let edges = results.first().map_or("ideal", |r| r.edges.as_str());
     out.push_str(&format!(
         "{seeds} power-on seeds per case (every encoder starts at a random point inside its \
-         count); mm\n"
+         count); encoder edges {edges}; mm\n"
     ));
     out.push_str(&format!(
         "{:<24} {:<14} {:<16} {:>7}",

@@ -56,11 +56,13 @@ use crate::formats::tickstream::{Event, TickStream};
 use crate::sim::trajectory::{Drive, Trajectory};
 use robot_math::wheel::Wheel;
 
+pub use edges::{EdgeErrors, EdgeMap};
 use interp::{Frames, Interp};
 pub use phase::{phases, PowerOnPhase};
 use ticker::{Ticker, WheelMotion};
 
 mod cheb;
+mod edges;
 mod interp;
 mod phase;
 mod ticker;
@@ -113,6 +115,9 @@ pub struct GenerateOptions {
     pub abs_rate_hz: f64,
     /// Where each incremental encoder stands inside its count at t = 0.
     pub phase: PowerOnPhase,
+    /// Where the encoders put their edges ([`EdgeErrors`]); each encoder's are drawn from the
+    /// power-on phase's seed (0 for a phase that has none).
+    pub edges: EdgeErrors,
 }
 
 impl Default for GenerateOptions {
@@ -122,6 +127,7 @@ impl Default for GenerateOptions {
             truth_rate_hz: 100.0,
             abs_rate_hz: 1000.0,
             phase: PowerOnPhase::Random { seed: 0 },
+            edges: EdgeErrors::IDEAL,
         }
     }
 }
@@ -296,7 +302,11 @@ pub fn generate_phases(
         phi: traj.pose(0.0).theta,
     };
     let wheels = robot.encoder_wheels();
-    let mut tickers: Vec<Ticker> = phase_sets.iter().map(|p| Ticker::new(robot, p)).collect();
+    let mut tickers: Vec<Ticker> = phase_sets
+        .iter()
+        .zip(phase_choices)
+        .map(|(p, choice)| Ticker::new(robot, p, edge_maps(robot, &opts.edges, *choice)))
+        .collect();
     let mut cuts: Vec<f64> = traj
         .breakpoints()
         .into_iter()
@@ -426,6 +436,9 @@ pub fn generate_phases(
             .map(|(i, (e, p))| format!("encoder {i} ({}) at {p:.6} of a count", e.name))
             .collect();
         comments.push(format!("power-on phase: {choice}; {}", each.join(", ")));
+        if !opts.edges.is_ideal() {
+            comments.push(edges_comment(&opts.edges, &ticks.edges));
+        }
         for (i, (e, (s, count))) in robot.encoders.iter().zip(&ticks.totals()).enumerate() {
             comments.push(format!(
                 "encoder {i} ({}): rolled {s:.9} m, {count} counts",
@@ -443,6 +456,50 @@ pub fn generate_phases(
         });
     }
     Ok(streams)
+}
+
+/// Each encoder's edges: drawn from `errors` with the power-on phase's seed.
+fn edge_maps(robot: &Robot, errors: &EdgeErrors, phase: PowerOnPhase) -> Vec<EdgeMap> {
+    let seed = match phase {
+        PowerOnPhase::Random { seed } => seed,
+        PowerOnPhase::Zero | PowerOnPhase::Fraction(_) => 0,
+    };
+    robot
+        .encoders
+        .iter()
+        .enumerate()
+        .map(|(i, e)| EdgeMap::draw(errors, seed, i, e.metres_per_count))
+        .collect()
+}
+
+/// The stream's record of its encoders' edges: what a reader that learns them can be
+/// checked against (a comment: readers of the format skip it).
+fn edges_comment(errors: &EdgeErrors, maps: &[EdgeMap]) -> String {
+    let each: Vec<String> = maps
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            format!(
+                "encoder {i} power-on state {} edges [{:+.4} {:+.4} {:+.4} {:+.4}] counts",
+                m.q0, m.cycle_edges[0], m.cycle_edges[1], m.cycle_edges[2], m.cycle_edges[3]
+            )
+        })
+        .collect();
+    format!(
+        "encoder edges: {errors} (state width {} °e, pulse width {} °e, phase {} °e, cycle {} \
+         °e, position {} arcmin over {} counts, runout {} m, capture latency up to {} ns, slip \
+         {}); {}",
+        errors.state_width_error_deg_e,
+        errors.pulse_width_error_deg_e,
+        errors.phase_error_deg_e,
+        errors.cycle_error_deg_e,
+        errors.position_error_arcmin,
+        errors.counts_per_rev,
+        errors.wheel_runout_m,
+        errors.capture_jitter_ns,
+        errors.slip,
+        each.join(", ")
+    )
 }
 
 fn to_ns(t: f64) -> u64 {

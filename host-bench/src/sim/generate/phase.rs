@@ -64,11 +64,11 @@ pub fn phases(robot: &Robot, phase: PowerOnPhase) -> anyhow::Result<Vec<f64>> {
 }
 
 /// SplitMix64's increment (2^64 / φ, odd).
-const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
+pub(super) const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
 
 /// SplitMix64's output function (Steele, Lea and Flood 2014), applied to the generator's
 /// state after its increment.
-fn splitmix64(state: u64) -> u64 {
+pub(super) fn splitmix64(state: u64) -> u64 {
     let mut z = state;
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
@@ -76,7 +76,7 @@ fn splitmix64(state: u64) -> u64 {
 }
 
 /// The top 53 bits as a float in `[0, 1)`: every value is exact and 1 is never reached.
-fn unit(x: u64) -> f64 {
+pub(super) fn unit(x: u64) -> f64 {
     (x >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 

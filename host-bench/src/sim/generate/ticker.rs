@@ -2,7 +2,9 @@
 //! root finding.
 
 use super::cheb::SpeedSeries;
+use super::edges::EdgeMap;
 use super::interp::{Interp, SAMPLES};
+use super::phase::{splitmix64, GOLDEN};
 use super::{to_ns, TIME_TOL_S};
 use crate::formats::robot::Robot;
 use crate::formats::tickstream::Event;
@@ -90,21 +92,33 @@ impl WheelMotion {
 
 pub(super) struct Ticker {
     steps: Vec<f64>,
-    /// Where each encoder stood inside its count at power-on, metres (phase × step).
+    /// Where each encoder stood at power-on, metres of its wheel's travel from its edge 0's
+    /// ideal place (phase × step with ideal edges).
     offsets: Vec<f64>,
-    /// Offset plus distance rolled so far: the count is `floor(rolled / step)`.
+    /// Offset plus distance the wheel rolled so far: the count is the edge map's count there
+    /// (`floor(rolled / step)` with ideal edges).
     rolled: Vec<Sum>,
+    /// Where each encoder's edges are.
+    pub(super) edges: Vec<EdgeMap>,
+    /// Each encoder's capture latency draws, and its last time stamp.
+    latency: Vec<(u64, u64)>,
     pub(super) events: Vec<Event>,
 }
 
 impl Ticker {
-    /// `phases`: each encoder's power-on phase, in `[0, 1)` of a count.
-    pub(super) fn new(robot: &Robot, phases: &[f64]) -> Ticker {
+    /// `phases`: each encoder's power-on phase, in `[0, 1)` of the count it starts in;
+    /// `edges`: where each puts its edges.
+    pub(super) fn new(robot: &Robot, phases: &[f64], edges: Vec<EdgeMap>) -> Ticker {
         let steps: Vec<f64> = robot.encoders.iter().map(|e| e.metres_per_count).collect();
         let offsets: Vec<f64> = steps
             .iter()
             .zip(phases)
-            .map(|(&step, &phase)| {
+            .zip(&edges)
+            .map(|((&step, &phase), map)| {
+                if !map.is_ideal() {
+                    let (e0, e1) = (map.edge(0), map.edge(1));
+                    return (e0 + phase * (e1 - e0)) * step;
+                }
                 // φ·step rounds up to the step itself for φ within an ulp of 1: stay inside
                 // count 0, so that counts start at 0 whatever the phase.
                 let mut offset = phase * step;
@@ -114,10 +128,15 @@ impl Ticker {
                 offset
             })
             .collect();
+        let latency = (0..steps.len() as u64)
+            .map(|i| (splitmix64(0x6c61_7465 ^ i.wrapping_mul(GOLDEN)), 0))
+            .collect();
         Ticker {
             rolled: offsets.iter().map(|&hi| Sum { hi, lo: 0.0 }).collect(),
             offsets,
             steps,
+            edges,
+            latency,
             events: Vec::new(),
         }
     }
@@ -128,7 +147,8 @@ impl Ticker {
             .iter()
             .zip(&self.offsets)
             .zip(&self.steps)
-            .map(|((r, &offset), &step)| (r.minus(offset), (r.value() / step).floor() as i64))
+            .zip(&self.edges)
+            .map(|(((r, &offset), &step), map)| (r.minus(offset), map.count_at(r.value() / step)))
             .collect()
     }
 
@@ -144,14 +164,16 @@ impl Ticker {
 
     /// Encoder `i` rolls monotonically over `[a, b]`: emit its edge crossings.
     fn piece(&mut self, i: usize, series: &SpeedSeries, a: f64, b: f64) {
+        let scale = self.edges[i].scale;
         let rolled_at_a = series.rolled(a);
-        let ds = series.rolled(b) - rolled_at_a;
+        let ds = (series.rolled(b) - rolled_at_a) * scale;
         let step = self.steps[i];
         let start = self.rolled[i];
         let mut end = start;
         end.add(ds);
-        let c0 = (start.value() / step).floor() as i64;
-        let c1 = (end.value() / step).floor() as i64;
+        let map = &self.edges[i];
+        let c0 = map.count_at(start.value() / step);
+        let c1 = map.count_at(end.value() / step);
         self.rolled[i] = end;
         if c0 == c1 {
             return;
@@ -164,17 +186,36 @@ impl Ticker {
             Box::new((c1 + 1..=c0).rev())
         };
         // g(t) = dir·(s(t) − edge): negative before the crossing, ≥ 0 after it. At `a` it is
-        // dir·base; at the previous crossing about −step; at `b` dir·(base + ds).
+        // dir·base; at the previous crossing minus the gap between the two edges; at `b`
+        // dir·(base + ds).
         let mut lo = a;
         for m in edges {
-            let edge = m as f64 * step;
+            let edge = map.edge(m) * step;
             let base = start.minus(edge);
-            let g = |t: f64| dir * (base + (series.rolled(t) - rolled_at_a));
-            let g_lo = if lo == a { dir * base } else { -step };
+            let g = |t: f64| dir * (base + (series.rolled(t) - rolled_at_a) * scale);
+            let g_lo = if lo == a {
+                dir * base
+            } else {
+                let previous = if up { m - 1 } else { m + 1 };
+                -(map.edge(m) - map.edge(previous)).abs() * step
+            };
             let g_hi = dir * (base + ds);
-            let t = find_crossing(&g, &|t| dir * series.speed(t), (lo, g_lo), (b, g_hi));
+            let t = find_crossing(
+                &g,
+                &|t| dir * scale * series.speed(t),
+                (lo, g_lo),
+                (b, g_hi),
+            );
+            let jitter = map.capture_jitter_ns;
+            let (draws, last) = &mut self.latency[i];
+            let mut t_ns = to_ns(t);
+            if jitter > 0 {
+                *draws = draws.wrapping_add(GOLDEN);
+                t_ns = (t_ns + splitmix64(*draws) % (jitter + 1)).max(*last);
+                *last = t_ns;
+            }
             self.events.push(Event::Tick {
-                t_ns: to_ns(t),
+                t_ns,
                 encoder: i as u16,
                 step: if up { 1 } else { -1 },
             });
