@@ -63,6 +63,12 @@ enum Command {
         /// (docs/odometry.md).
         #[arg(long, value_name = "P0,P1", value_parser = parse_phase)]
         encoder_phase: Option<[f64; 2]>,
+        /// Where the measuring encoders put their edges: `ideal` (one count apart), or
+        /// Broadcom HEDS-9040's datasheet errors, `typical` or `max` (and `typical-cycle`,
+        /// `max-cycle`), each encoder's drawn from the seed (docs/tick-stream.md, "Encoder
+        /// edges").
+        #[arg(long, value_name = "ideal|typical|max", default_value = "ideal")]
+        edges: String,
         /// Fault injection: cut the slave's power at this simulated time (seconds).
         #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
         fault_slave_off_at: Option<f64>,
@@ -276,6 +282,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             sweep,
             out,
             encoder_phase,
+            edges,
             fault_slave_off_at,
             fault_slave_reset_at,
             fault_host_silent_after,
@@ -318,6 +325,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             // The command line over the scenario's own settings.
             opts.encoder_phase = encoder_phase.or(opts.encoder_phase);
+            opts.edges = host_bench::sim::generate::EdgeErrors::preset(&edges)?;
             let f = &mut opts.faults;
             f.slave_off_at = fault_slave_off_at.or(f.slave_off_at);
             f.slave_reset_at = fault_slave_reset_at.or(f.slave_reset_at);

@@ -185,6 +185,39 @@ fn bad_arguments_fail_clearly_and_write_nothing() {
         .output()
         .unwrap();
     assert!(!out.status.success());
+
+    for command in ["emulate", "accuracy", "generate"] {
+        let out = host_bench()
+            .args([command, "--edges", "typcial"])
+            .args(
+                ["--robot", "r.toml", "--trajectory", "t", "--out", "o.csv"]
+                    .iter()
+                    .filter(|_| command == "generate"),
+            )
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{command}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--edges must be ideal, typical, max"),
+            "{command}: {err}"
+        );
+    }
+}
+
+#[test]
+fn emulate_runs_real_encoders_edges_and_says_so() {
+    let out = host_bench()
+        .args(["emulate", "--duration", "3", "--edges", "typical"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("edges HEDS-9040 typical"), "{text}");
 }
 
 fn tickstream_data(name: &str) -> std::path::PathBuf {

@@ -31,7 +31,7 @@ pub fn summary_text(s: &Summary) -> String {
          simulated       {sim:.3} s in {wall:.3} s wall ({speed:.0}x real time)\n\
          path length     {path:.3} m\n\
          slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
-         encoders        {p0:.3} and {p1:.3} of a count past an edge at power-on\n\
+         encoders        {p0:.3} and {p1:.3} of a count past an edge at power-on, edges {edges}\n\
          robot           ended at ({x:.4}, {y:.4}) m, {dg:.1} mm from the goal{arr}\n\
          motors          switched on {on} times{after}\n\
          SPI frames      {spi} exchanged, {spir} rejected{inj}{view}\n\
@@ -52,6 +52,7 @@ pub fn summary_text(s: &Summary) -> String {
         he = s.final_heading_error_rad.to_degrees(),
         p0 = s.encoder_phase[0],
         p1 = s.encoder_phase[1],
+        edges = s.encoder_edges,
         x = s.final_position_m.0,
         y = s.final_position_m.1,
         dg = s.distance_to_goal_m * 1e3,

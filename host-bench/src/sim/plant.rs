@@ -17,6 +17,8 @@ pub use sensors::{slave_board_reads, MeasuringSensors};
 
 use trig::{Trig, FULL_TRIG_EVERY};
 
+use crate::sim::generate::EdgeMap;
+
 use robot_math::drive::DriveKinematics;
 use robot_math::motor::{DcMotor, HeldDuty};
 use robot_math::se2::wrap_angle;
@@ -85,6 +87,16 @@ pub struct Plant {
     full_trig_in: u32,
     /// The first encoder's edges of a step while they are merged with the second's.
     merge_scratch: Vec<edges::Edge>,
+    /// Real encoders' edges ([`with_edges`](Self::with_edges)): where each puts them, and
+    /// its capture latency's draws and last time stamp. None: ideal edges, whole counts.
+    edge_maps: Option<Box<MappedEdges>>,
+}
+
+/// The measuring encoders' uneven edges.
+#[derive(Clone, Debug)]
+struct MappedEdges {
+    maps: [EdgeMap; 2],
+    latency: [(u64, f64); 2],
 }
 
 impl Plant {
@@ -121,7 +133,24 @@ impl Plant {
             trig: Trig::of(&cfg, &state),
             full_trig_in: FULL_TRIG_EVERY,
             merge_scratch: Vec::new(),
+            edge_maps: None,
         }
+    }
+
+    /// The measuring encoders' edges where `maps` puts them (a real encoder's: uneven, and
+    /// stamped late by up to its capture latency) instead of one count apart. Each encoder
+    /// powers on at its phase between its map's first two edges. Call before the first step.
+    pub fn with_edges(mut self, maps: [EdgeMap; 2]) -> Self {
+        for (j, map) in maps.iter().enumerate() {
+            let (e0, e1) = (map.edge(0), map.edge(1));
+            let phase = self.encoder_phase[j] - self.phase_floor[j];
+            self.encoder_phase[j] = e0 + phase * (e1 - e0);
+            self.phase_floor[j] = 0.0;
+        }
+        let latency = core::array::from_fn(|j| (0x6c61_7465 ^ (j as u64 + 1), 0.0));
+        self.edge_maps = Some(Box::new(MappedEdges { maps, latency }));
+        self.positions = self.encoder_positions(&self.state);
+        self
     }
 
     pub fn time(&self) -> f64 {
@@ -165,9 +194,12 @@ impl Plant {
         self.wheel_speed
     }
 
-    /// Quadrature counts each measuring-wheel encoder shows now (x4 decoding, ideal edges).
+    /// Quadrature counts each measuring-wheel encoder shows now (x4 decoding).
     pub fn encoder_counts(&self) -> [i64; 2] {
-        self.positions.map(edges::whole_counts)
+        match &self.edge_maps {
+            None => self.positions.map(edges::whole_counts),
+            Some(m) => core::array::from_fn(|j| m.maps[j].count_at(self.positions[j])),
+        }
     }
 
     /// The motor encoders' counts now, as the master's free-running 16-bit counters show
@@ -315,7 +347,12 @@ impl Plant {
         for j in 0..2 {
             second_encoder = self.edges.len();
             let (a, b) = (p0[j], p1[j]);
-            if edges::whole_counts(a) == edges::whole_counts(b) {
+            let map = self.edge_maps.as_deref().map(|m| &m.maps[j]);
+            let same = match map {
+                None => edges::whole_counts(a) == edges::whole_counts(b),
+                Some(m) => m.count_at(a) == m.count_at(b),
+            };
+            if same {
                 continue;
             }
             let per_count = self.per_count[j];
@@ -324,7 +361,24 @@ impl Plant {
                 k1.rolled[j] / per_count * h,
                 k_end.rolled[j] / per_count * h,
             );
-            edges::push_crossings(&mut self.edges, j, self.t, h, (a, b), (v0, v1));
+            match map {
+                None => edges::push_crossings(&mut self.edges, j, self.t, h, (a, b), (v0, v1)),
+                Some(m) => {
+                    let from = self.edges.len();
+                    edges::push_mapped_crossings(
+                        &mut self.edges,
+                        j,
+                        self.t,
+                        h,
+                        (a, b),
+                        (v0, v1),
+                        m,
+                    );
+                    if let Some(m) = self.edge_maps.as_deref_mut() {
+                        m.stamp_late(j, &mut self.edges[from..]);
+                    }
+                }
+            }
         }
         // Each encoder's edges are in time order: merged, the two are in the order the edge
         // interrupts would come (the first encoder's first on a tie).
@@ -339,6 +393,24 @@ impl Plant {
         self.trig = trig_end;
         self.wheel_speed = end;
         self.t += h;
+    }
+}
+
+impl MappedEdges {
+    /// Encoder `j`'s new `edges`, stamped late by its capture latency (uniform in [0, the
+    /// map's latency]), never before its previous stamp.
+    fn stamp_late(&mut self, j: usize, edges: &mut [edges::Edge]) {
+        let jitter = self.maps[j].capture_jitter_ns;
+        if jitter == 0 {
+            return;
+        }
+        let (draws, last) = &mut self.latency[j];
+        for (t, _, _) in edges {
+            *draws = draws.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let late = crate::sim::generate::splitmix64(*draws) % (jitter + 1);
+            *t = (*t + late as f64 * 1e-9).max(*last);
+            *last = *t;
+        }
     }
 }
 
@@ -579,6 +651,50 @@ pub(super) mod tests {
             .fold(0.0, f64::max);
         eprintln!("worst edge {:.3} ns off", worst * 1e9);
         assert!(worst < 0.05e-6, "{worst} s");
+    }
+
+    #[test]
+    fn uneven_edges_are_crossed_where_the_map_puts_them() {
+        // The same run with a datasheet's maximum edges, without the capture latency: each
+        // edge the plant reports is crossed where its map puts it (the wheel's position at
+        // that instant, from fine steps, is on the edge), its count is the map's, and the
+        // counts agree with the edges.
+        use crate::sim::generate::{EdgeErrors, EdgeMap};
+        let errors = EdgeErrors {
+            capture_jitter_ns: 0,
+            ..EdgeErrors::HEDS_9040_MAX
+        };
+        let per_count = cfg().sensors.metres_per_count();
+        let maps = || core::array::from_fn(|j| EdgeMap::draw(&errors, 5, j, per_count[j]));
+        let mut p = Plant::new(cfg(), Pose2::default(), 0.0, [0.3, 0.7]).with_edges(maps());
+        p.set_duty(duty_for(&p, Twist::new(0.5, 0.0, 0.0)));
+        p.advance(0.05, 1e-3);
+        let edges = p.take_edges();
+        assert!(edges.len() > 50, "{}", edges.len());
+        let maps: [EdgeMap; 2] = maps();
+        let mut fine =
+            Plant::new(cfg(), Pose2::default(), 0.0, [0.3, 0.7]).with_edges(maps.clone());
+        fine.set_duty(duty_for(&fine, Twist::new(0.5, 0.0, 0.0)));
+        let mut uneven = false;
+        for &(t, j, count) in &edges {
+            fine.advance(t - fine.time(), 1e-6);
+            // Within a thousandth of a count of one of the map's edges (the edge's time is
+            // the coarse run's, well under a microsecond off).
+            let position = fine.positions[j];
+            let crossed = maps[j].count_at(position + 1e-3) - maps[j].count_at(position - 1e-3);
+            assert!(crossed == 1, "encoder {j} at {t} s: {position} is no edge");
+            assert_eq!(
+                maps[j].count_at(position + 1e-3),
+                count,
+                "encoder {j} at {t} s"
+            );
+            uneven |= (position - position.round()).abs() > 0.05;
+        }
+        assert!(uneven, "every edge on a whole count: the map was not used");
+        assert_eq!(
+            p.encoder_counts(),
+            core::array::from_fn(|j| { edges.iter().rfind(|e| e.1 == j).map_or(0, |e| e.2) })
+        );
     }
 
     #[test]

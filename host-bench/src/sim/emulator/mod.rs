@@ -41,6 +41,7 @@ use robot_math::Pose2;
 use serde::Serialize;
 use virtual_time::Simulation;
 
+use crate::sim::generate::EdgeMap;
 use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
 use crate::sim::serial_noise::{Receiver, SerialFaults, SerialNoise};
 use hw::*;
@@ -201,12 +202,19 @@ pub fn run_logged(
     // millimetres. Drawn after the phases, so a seed keeps them.
     let control_period_s = opts.master.control_period_us as f64 * 1e-6;
     let path_start_delay_s = rng.random::<f64>() * control_period_s;
-    let plant: SharedPlant = Rc::new(RefCell::new(Plant::new(
+    let per_count = plant_cfg.sensors.metres_per_count();
+    let mut plant = Plant::new(
         plant_cfg,
         Pose2::new(x, y, th),
         scenario.start_swivel,
         encoder_phase,
-    )));
+    );
+    if !opts.edges.is_ideal() {
+        plant = plant.with_edges(core::array::from_fn(|j| {
+            EdgeMap::draw(&opts.edges, opts.seed, j, per_count[j])
+        }));
+    }
+    let plant: SharedPlant = Rc::new(RefCell::new(plant));
 
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
@@ -449,6 +457,7 @@ pub fn run_logged(
         algorithm: format!("{:?}", slave_frame.algorithm).to_lowercase(),
         seed: opts.seed,
         encoder_phase,
+        encoder_edges: opts.edges.to_string(),
         sim_seconds: sim.now().as_micros() as f64 / 1e6,
         wall_seconds,
         speed_x: sim.now().as_micros() as f64 / 1e6 / wall_seconds.max(1e-9),

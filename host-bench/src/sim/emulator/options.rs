@@ -40,6 +40,9 @@ pub struct Options {
     /// Where each measuring-wheel encoder stands within its count at power-on, in counts,
     /// [0, 1) (None: drawn from `seed`). The slave cannot know it ([`Summary::encoder_phase`](super::Summary::encoder_phase)).
     pub encoder_phase: Option<[f64; 2]>,
+    /// Where the measuring encoders put their edges: ideal (one count apart), or a
+    /// datasheet's errors, each encoder's drawn from `seed` (`EdgeErrors`).
+    pub edges: crate::sim::generate::EdgeErrors,
     /// [`run`](super::run) keeps the run's log rows in [`Run::log`](super::Run::log) (about 59 MB per simulated hour). Off,
     /// the run keeps its summary only and its memory stays flat however long it runs;
     /// [`run_logged`](super::run_logged) streams the rows instead.
@@ -87,6 +90,7 @@ impl Options {
             faults: scenario.faults.clone(),
             algorithm: protocol::spi::OdometryAlgorithm::Exact,
             encoder_phase: scenario.encoder_phase,
+            edges: crate::sim::generate::EdgeErrors::IDEAL,
             keep_log: true,
             duties: hw::DutySource::Master,
         }

@@ -43,6 +43,8 @@ pub struct Summary {
     /// heading by (p1 − p0)·(travel per count)/(wheel base) for the whole run: on
     /// seed004-pursuit that tilt is nearly all of the final error (docs/odometry.md).
     pub encoder_phase: [f64; 2],
+    /// Where the measuring encoders put their edges (`ideal`, or a datasheet column).
+    pub encoder_edges: String,
     pub sim_seconds: f64,
     /// Wall-clock seconds the run took (the run alone: no start-up, no output).
     pub wall_seconds: f64,

@@ -67,6 +67,44 @@ pub(super) fn push_crossings(
     }
 }
 
+/// [`push_crossings`] for an encoder whose edges are where `map` puts them (uneven: a real
+/// encoder's, `crate::sim::generate::EdgeMap`): each edge solved on the same cubic from the
+/// same guess, the count after it the map's.
+pub(super) fn push_mapped_crossings(
+    edges: &mut Vec<Edge>,
+    j: usize,
+    t0: f64,
+    h: f64,
+    (a, b): (f64, f64),
+    (v0, v1): (f64, f64),
+    map: &crate::sim::generate::EdgeMap,
+) {
+    let cubic = Cubic::hermite((a, b), (v0, v1));
+    let guess = InverseGuess::new((a, b), (v0, v1));
+    let rising = b > a;
+    let (ca, cb) = (map.count_at(a), map.count_at(b));
+    let mut solve = |edge: i64, count_after: i64| {
+        let e = map.edge(edge);
+        let mut crossing = Crossing::start(e, guess.at(e));
+        for _ in 0..60 {
+            if crossing.iterate(&cubic, rising) {
+                break;
+            }
+        }
+        edges.push((t0 + h * crossing.u, j, count_after));
+    };
+    if rising {
+        for c in ca + 1..=cb {
+            solve(c, c);
+        }
+    } else {
+        // Downward, edge c takes the count from c to c − 1; the higher edges come first.
+        for c in (cb + 1..=ca).rev() {
+            solve(c, c - 1);
+        }
+    }
+}
+
 /// The whole counts at or below `x` (`x.floor()`, as an integer), for positions below 2^63
 /// counts. Without SSE4.1's rounding instruction (not in the x86-64 baseline) `floor` is a
 /// library call; this is a conversion and a compare.
