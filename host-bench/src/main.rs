@@ -67,8 +67,9 @@ enum Command {
         /// Broadcom HEDS-9040's datasheet errors, `typical` or `max` (and `typical-cycle`,
         /// `max-cycle`), each encoder's drawn from the seed (docs/tick-stream.md, "Encoder
         /// edges").
-        #[arg(long, value_name = "ideal|typical|max", default_value = "ideal")]
-        edges: String,
+        /// [default: the scenario's `noise.encoder_edges`, else ideal]
+        #[arg(long, value_name = "ideal|typical|max")]
+        edges: Option<String>,
         /// Fault injection: cut the slave's power at this simulated time (seconds).
         #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
         fault_slave_off_at: Option<f64>,
@@ -325,7 +326,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             // The command line over the scenario's own settings.
             opts.encoder_phase = encoder_phase.or(opts.encoder_phase);
-            opts.edges = host_bench::sim::generate::EdgeErrors::preset(&edges)?;
+            if let Some(e) = &edges {
+                opts.edges = host_bench::sim::generate::EdgeErrors::preset(e)
+                    .map_err(|err| anyhow::anyhow!("--edges: {err:#}"))?;
+            }
             let f = &mut opts.faults;
             f.slave_off_at = fault_slave_off_at.or(f.slave_off_at);
             f.slave_reset_at = fault_slave_reset_at.or(f.slave_reset_at);

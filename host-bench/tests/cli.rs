@@ -199,7 +199,7 @@ fn bad_arguments_fail_clearly_and_write_nothing() {
         assert!(!out.status.success(), "{command}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.contains("--edges must be ideal, typical, max"),
+            err.contains("--edges: the encoder edges must be ideal, typical, max"),
             "{command}: {err}"
         );
     }

@@ -145,5 +145,5 @@ fn capture_latency_is_late_bounded_and_in_order() {
 #[test]
 fn an_unknown_preset_is_refused_with_the_choices() {
     let e = EdgeErrors::preset("typcial").unwrap_err().to_string();
-    assert!(e.contains("ideal, typical, max"), "{e}");
+    assert!(e.contains("must be ideal, typical, max"), "{e}");
 }

@@ -76,6 +76,7 @@ fn mistakes_are_named_by_line_and_key() {
         (GOOD.replace("v1", "v2"), ":1:10: key `format`", "unsupported format"),
         (GOOD.replace("[start]", "[[start]]"), "key `start`", "write [start]"),
         (format!("{GOOD}[noise]\nencoder_phase = [0.5, 1.0]\n"), ":19:17: key `noise.encoder_phase`", "[0, 1)"),
+        (format!("{GOOD}[noise]\nencoder_edges = \"typcal\"\n"), ":19:17: key `noise.encoder_edges`", "must be ideal, typical, max"),
         (format!("{GOOD}[target]\nfrom_m = [0, 0]\nto_m = [1, 0]\nspeed_m_s = 0.1\nrobot_speed_m_s = 0.2\n"), ":11:1: key `trajectory`", "not both"),
     ];
     for (text, place, what) in cases {
@@ -95,4 +96,16 @@ fn a_robot_the_master_cannot_drive_is_refused_at_its_line() {
         e.contains(":3:9: key `robot`") && e.contains("[tracked_point]"),
         "{e}"
     );
+}
+
+/// `noise.encoder_edges` puts a datasheet's edges on the plant's encoders.
+#[test]
+fn a_scenario_takes_the_encoders_edges() {
+    let s = load_text(&format!("{GOOD}[noise]\nencoder_edges = \"max\"\n")).unwrap();
+    assert_eq!(
+        s.encoder_edges,
+        host_bench::sim::generate::EdgeErrors::HEDS_9040_MAX
+    );
+    let s = load_text(GOOD).unwrap();
+    assert!(s.encoder_edges.is_ideal());
 }

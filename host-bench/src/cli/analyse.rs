@@ -16,7 +16,7 @@ pub fn run_accuracy(
     edges: &str,
 ) -> anyhow::Result<()> {
     use host_bench::eval::accuracy;
-    let edges = host_bench::sim::generate::EdgeErrors::preset(edges)?;
+    let edges = host_bench::sim::generate::EdgeErrors::preset(edges).context("--edges")?;
     anyhow::ensure!(
         (1..=MAX_ACCURACY_SEEDS).contains(&seeds),
         "--seeds must be 1 to {MAX_ACCURACY_SEEDS}, got {seeds}"

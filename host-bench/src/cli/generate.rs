@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, ensure, Result};
+use anyhow::{bail, ensure, Context, Result};
 use clap::Args;
 use host_bench::formats::{robot::Robot, tickstream};
 use host_bench::sim::generate::{self, PowerOnPhase};
@@ -104,7 +104,7 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
         );
     }
     let phase = power_on_phase(&a.phase, a.seed)?;
-    let edges = generate::EdgeErrors::preset(&a.edges)?;
+    let edges = generate::EdgeErrors::preset(&a.edges).context("--edges")?;
     let robot = Robot::load(&robot_path)?;
     let named = traj::named(&name).ok_or_else(|| {
         anyhow::anyhow!("unknown trajectory {name:?}; `host-bench generate --list` names them")

@@ -93,6 +93,7 @@ struct RawController {
 struct RawNoise {
     // A list, its length checked here: as `[f64; 2]` a third value was dropped unseen.
     encoder_phase: Option<Spanned<Vec<f64>>>,
+    encoder_edges: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -310,6 +311,12 @@ impl TomlFile<'_> {
             }
             None => None,
         };
+        let encoder_edges = match raw.noise.as_ref().and_then(|n| n.encoder_edges.as_ref()) {
+            Some(e) => crate::sim::generate::EdgeErrors::preset(e.get_ref()).map_err(|err| {
+                anyhow!(self.at(e.span(), "noise.encoder_edges", format!("{err:#}")))
+            })?,
+            None => crate::sim::generate::EdgeErrors::IDEAL,
+        };
         let mut faults = Faults::default();
         if let Some(f) = &raw.faults {
             if let Some(v) = &f.slave_off_at_s {
@@ -406,6 +413,7 @@ impl TomlFile<'_> {
             duration,
             pursuit_period_s,
             encoder_phase,
+            encoder_edges,
             faults,
         })
     }

@@ -76,6 +76,9 @@ pub struct Scenario {
     /// Where each measuring-wheel encoder stands within its count at power-on (None: drawn
     /// from the run's seed).
     pub encoder_phase: Option<[f64; 2]>,
+    /// Where the measuring encoders put their edges (ideal, or a datasheet's errors).
+    #[serde(skip)]
+    pub encoder_edges: crate::sim::generate::EdgeErrors,
     pub faults: Faults,
 }
 
@@ -127,6 +130,7 @@ impl Scenario {
             duration: 12.0,
             pursuit_period_s: None,
             encoder_phase: None,
+            encoder_edges: crate::sim::generate::EdgeErrors::IDEAL,
             faults: Faults::default(),
         }
     }

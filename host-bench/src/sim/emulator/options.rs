@@ -90,7 +90,7 @@ impl Options {
             faults: scenario.faults.clone(),
             algorithm: protocol::spi::OdometryAlgorithm::Exact,
             encoder_phase: scenario.encoder_phase,
-            edges: crate::sim::generate::EdgeErrors::IDEAL,
+            edges: scenario.encoder_edges,
             keep_log: true,
             duties: hw::DutySource::Master,
         }

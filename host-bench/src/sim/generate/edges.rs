@@ -120,8 +120,8 @@ impl EdgeErrors {
             "typical-cycle" => Self::HEDS_9040_TYPICAL.cycle_only("HEDS-9040 typical, cycle only"),
             "max-cycle" => Self::HEDS_9040_MAX.cycle_only("HEDS-9040 maximum, cycle only"),
             other => bail!(
-                "--edges must be ideal, typical, max, typical-cycle or max-cycle (Broadcom \
-                 HEDS-9040's datasheet columns), got {other:?}"
+                "the encoder edges must be ideal, typical, max, typical-cycle or max-cycle \
+                 (Broadcom HEDS-9040's datasheet columns), got {other:?}"
             ),
         })
     }
