@@ -384,6 +384,11 @@ pub struct VirtualBoardArgs {
     /// again from power-on 5 ms later (a `play` or `record` then stops and says so).
     #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
     pub fault_slave_reset_at: Option<f64>,
+    /// Where the simulated robot's measuring encoders put their edges: `ideal` (one count
+    /// apart), or Broadcom HEDS-9040's datasheet errors, `typical` or `max`, each encoder's
+    /// drawn from --seed (docs/tick-stream.md, "Encoder edges"): what `record` then records.
+    #[arg(long, value_name = "ideal|typical|max", default_value = "ideal")]
+    pub edges: String,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -402,6 +407,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     };
     let mut opts = virtual_board::Options {
         seed: a.seed,
+        edges: host_bench::sim::generate::EdgeErrors::preset(&a.edges).context("--edges")?,
         ..virtual_board::Options::for_robot(layout)
     };
     for (name, rate) in [

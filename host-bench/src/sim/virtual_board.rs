@@ -67,6 +67,9 @@ pub struct Options {
     /// Course: side of the square, metres, and speed, m/s.
     pub course_side: f64,
     pub course_speed: f64,
+    /// Where the measuring encoders put their edges (ideal, or a datasheet's errors, each
+    /// encoder's drawn from `seed`).
+    pub edges: crate::sim::generate::EdgeErrors,
 }
 
 impl Default for Options {
@@ -86,6 +89,7 @@ impl Options {
             faults: Faults::default(),
             course_side: 1.0,
             course_speed,
+            edges: crate::sim::generate::EdgeErrors::IDEAL,
         }
     }
 }
@@ -233,12 +237,19 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         motor_metres_per_count: None,
         sensors,
     };
-    let plant: SharedPlant = Rc::new(RefCell::new(Plant::new(
+    let per_count = plant_cfg.sensors.metres_per_count();
+    let mut plant = Plant::new(
         plant_cfg,
         Pose2::new(0.0, 0.0, 0.0),
         std::f64::consts::FRAC_PI_2,
         [rng.random::<f64>(), rng.random::<f64>()],
-    )));
+    );
+    if !opts.edges.is_ideal() {
+        plant = plant.with_edges(core::array::from_fn(|j| {
+            crate::sim::generate::EdgeMap::draw(&opts.edges, opts.seed, j, per_count[j])
+        }));
+    }
+    let plant: SharedPlant = Rc::new(RefCell::new(plant));
     let side = opts.course_side;
     let mut course = Course {
         corners: [(0.0, side), (side, side), (side, 0.0), (0.0, 0.0)],
