@@ -33,6 +33,12 @@ needs_host_bench = unittest.skipUnless(
 )
 
 
+def board_model(command):
+    """scripts/board-model's `command` (boot, serve, play-check) on the images under test, as
+    an argument list to extend."""
+    return [sys.executable, BOARD_MODEL, command, "--slave", SLAVE, "--master", MASTER]
+
+
 def circle_stream(out_dir, laps=0.05):
     """scripts/circle-stream.py's circle, `laps` of it (0.05: 0.52 s, 784 ticks); its file's
     path."""

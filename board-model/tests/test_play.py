@@ -19,11 +19,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
 from support import (  # noqa: E402
-    BOARD_MODEL,
     HOST_BENCH,
-    MASTER,
     ROOT,
-    SLAVE,
+    board_model,
     circle_stream,
     needs_host_bench,
     needs_images,
@@ -45,17 +43,11 @@ class TestPlay(unittest.TestCase):
     def play(self, sensor, *play_args):
         r = subprocess.run(
             [
-                sys.executable,
-                BOARD_MODEL,
-                "play-check",
+                *board_model("play-check"),
                 "--ticks",
                 self.ticks,
                 "--sensor",
                 sensor,
-                "--slave",
-                SLAVE,
-                "--master",
-                MASTER,
                 "--host-bench",
                 HOST_BENCH,
                 "--",

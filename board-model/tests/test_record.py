@@ -18,10 +18,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
 from support import (  # noqa: E402
-    BOARD_MODEL,
     HOST_BENCH,
     MASTER,
     SLAVE,
+    board_model,
     needs_host_bench,
     needs_images,
     needs_slave,
@@ -61,15 +61,7 @@ class TestEncoderPins(unittest.TestCase):
 class TestRecord(unittest.TestCase):
     def test_recorded_counts_are_the_models(self):
         with tempfile.TemporaryDirectory() as d:
-            cmd = [
-                sys.executable,
-                BOARD_MODEL,
-                "serve",
-                "--slave",
-                SLAVE,
-                "--master",
-                MASTER,
-            ]
+            cmd = board_model("serve")
             for spec in DRIVE:
                 cmd += ["--drive", spec]
             err = open(os.path.join(d, "serve.err"), "w+")

@@ -24,10 +24,10 @@ from f103.bench import Bench  # noqa: E402
 from f103.core import Chip  # noqa: E402
 from f103.reset import PINRSTF, PORRSTF, SFTRSTF  # noqa: E402
 from support import (  # noqa: E402
-    BOARD_MODEL,
     HOST_BENCH,
     MASTER,
     SLAVE,
+    board_model,
     circle_stream,
     needs_host_bench,
     needs_images,
@@ -89,13 +89,7 @@ class TestPlayThroughSlaveReset(unittest.TestCase):
         # the reset at 1 s of simulated time, in the middle of the first play
         serve = subprocess.Popen(
             [
-                sys.executable,
-                BOARD_MODEL,
-                "serve",
-                "--slave",
-                SLAVE,
-                "--master",
-                MASTER,
+                *board_model("serve"),
                 "--reset-slave-at",
                 "1.0",
             ],

@@ -6,29 +6,25 @@ fn host_bench() -> Command {
     Command::new(env!("CARGO_BIN_EXE_host-bench"))
 }
 
-/// Runs `host-bench` with `args`, which must succeed; its stdout as JSON.
-fn json_of(args: &[&std::ffi::OsStr]) -> serde_json::Value {
+/// Runs `host-bench` with `args`, which must succeed; its stdout.
+fn stdout_of<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> String {
     let out = host_bench().args(args).output().unwrap();
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&out.stdout).unwrap()
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// Runs `host-bench` with `args`, which must succeed; its stdout as JSON.
+fn json_of(args: &[&std::ffi::OsStr]) -> serde_json::Value {
+    serde_json::from_str(&stdout_of(args)).unwrap()
 }
 
 #[test]
 fn emulate_json_prints_the_documented_keys() {
-    let out = host_bench()
-        .args(["emulate", "--json", "--duration", "3"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8(out.stdout).unwrap();
+    let stdout = stdout_of(&["emulate", "--json", "--duration", "3"]);
     assert_eq!(
         stdout.lines().count(),
         1,
@@ -207,16 +203,7 @@ fn bad_arguments_fail_clearly_and_write_nothing() {
 
 #[test]
 fn emulate_runs_real_encoders_edges_and_says_so() {
-    let out = host_bench()
-        .args(["emulate", "--duration", "3", "--edges", "typical"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = stdout_of(&["emulate", "--duration", "3", "--edges", "typical"]);
     assert!(text.contains("edges HEDS-9040 typical"), "{text}");
 }
 

@@ -171,6 +171,8 @@ pub struct EdgeMap {
     /// Counts of the wheel's travel per metre of the ground's (1 − slip).
     pub scale: f64,
     pub capture_jitter_ns: u64,
+    /// The capture latency's draws (a SplitMix64 state of the encoder's own).
+    latency_draws: u64,
     ideal: bool,
 }
 
@@ -248,6 +250,7 @@ impl EdgeMap {
             counts_per_rev,
             scale: 1.0 - errors.slip,
             capture_jitter_ns: errors.capture_jitter_ns,
+            latency_draws: splitmix64(0x6c61_7465 ^ (index as u64).wrapping_mul(GOLDEN)),
             ideal: errors.is_ideal(),
         }
     }
@@ -276,6 +279,16 @@ impl EdgeMap {
             + self.cycle_edges[k.rem_euclid(4) as usize]
             + line
             + self.rev_amplitude * (angle.sin() - self.rev_phase.sin())
+    }
+
+    /// How late the next edge's time stamp is, ns: uniform in `[0, capture_jitter_ns]` (the
+    /// caller keeps the stamps in order).
+    pub fn latency_ns(&mut self) -> u64 {
+        if self.capture_jitter_ns == 0 {
+            return 0;
+        }
+        self.latency_draws = self.latency_draws.wrapping_add(GOLDEN);
+        splitmix64(self.latency_draws) % (self.capture_jitter_ns + 1)
     }
 
     /// The count at `x` counts of travel: the last edge at or before it.

@@ -58,7 +58,7 @@ use robot_math::wheel::Wheel;
 
 pub use edges::{EdgeErrors, EdgeMap};
 use interp::{Frames, Interp};
-pub use phase::{phases, splitmix64, PowerOnPhase};
+pub use phase::{phases, PowerOnPhase};
 use ticker::{Ticker, WheelMotion};
 
 mod cheb;

@@ -4,7 +4,6 @@
 use super::cheb::SpeedSeries;
 use super::edges::EdgeMap;
 use super::interp::{Interp, SAMPLES};
-use super::phase::{splitmix64, GOLDEN};
 use super::{to_ns, TIME_TOL_S};
 use crate::formats::robot::Robot;
 use crate::formats::tickstream::Event;
@@ -100,8 +99,8 @@ pub(super) struct Ticker {
     rolled: Vec<Sum>,
     /// Where each encoder's edges are.
     pub(super) edges: Vec<EdgeMap>,
-    /// Each encoder's capture latency draws, and its last time stamp.
-    latency: Vec<(u64, u64)>,
+    /// Each encoder's last time stamp (its capture latency must not reorder them).
+    last_stamp: Vec<u64>,
     pub(super) events: Vec<Event>,
 }
 
@@ -128,15 +127,13 @@ impl Ticker {
                 offset
             })
             .collect();
-        let latency = (0..steps.len() as u64)
-            .map(|i| (splitmix64(0x6c61_7465 ^ i.wrapping_mul(GOLDEN)), 0))
-            .collect();
+        let last_stamp = vec![0; steps.len()];
         Ticker {
             rolled: offsets.iter().map(|&hi| Sum { hi, lo: 0.0 }).collect(),
             offsets,
             steps,
             edges,
-            latency,
+            last_stamp,
             events: Vec::new(),
         }
     }
@@ -190,14 +187,14 @@ impl Ticker {
         // dir·(base + ds).
         let mut lo = a;
         for m in edges {
-            let edge = map.edge(m) * step;
+            let edge = self.edges[i].edge(m) * step;
             let base = start.minus(edge);
             let g = |t: f64| dir * (base + (series.rolled(t) - rolled_at_a) * scale);
             let g_lo = if lo == a {
                 dir * base
             } else {
                 let previous = if up { m - 1 } else { m + 1 };
-                -(map.edge(m) - map.edge(previous)).abs() * step
+                -(self.edges[i].edge(m) - self.edges[i].edge(previous)).abs() * step
             };
             let g_hi = dir * (base + ds);
             let t = find_crossing(
@@ -206,14 +203,9 @@ impl Ticker {
                 (lo, g_lo),
                 (b, g_hi),
             );
-            let jitter = map.capture_jitter_ns;
-            let (draws, last) = &mut self.latency[i];
-            let mut t_ns = to_ns(t);
-            if jitter > 0 {
-                *draws = draws.wrapping_add(GOLDEN);
-                t_ns = (t_ns + splitmix64(*draws) % (jitter + 1)).max(*last);
-                *last = t_ns;
-            }
+            // Stamped late by the capture latency, never before the last stamp.
+            let t_ns = (to_ns(t) + self.edges[i].latency_ns()).max(self.last_stamp[i]);
+            self.last_stamp[i] = t_ns;
             self.events.push(Event::Tick {
                 t_ns,
                 encoder: i as u16,

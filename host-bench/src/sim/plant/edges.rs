@@ -56,13 +56,7 @@ pub(super) fn push_crossings(
     if missed {
         for (t, _, count_after) in &mut edges[first..] {
             let e = edge_of(*count_after) as f64;
-            let mut crossing = Crossing::start(e, guess.at(e));
-            for _ in 0..60 {
-                if crossing.iterate(&cubic, rising) {
-                    break;
-                }
-            }
-            *t = t0 + h * crossing.u;
+            *t = t0 + h * solve(&cubic, e, guess.at(e), rising);
         }
     }
 }
@@ -83,26 +77,36 @@ pub(super) fn push_mapped_crossings(
     let guess = InverseGuess::new((a, b), (v0, v1));
     let rising = b > a;
     let (ca, cb) = (map.count_at(a), map.count_at(b));
-    let mut solve = |edge: i64, count_after: i64| {
+    let mut push = |edge: i64, count_after: i64| {
         let e = map.edge(edge);
-        let mut crossing = Crossing::start(e, guess.at(e));
-        for _ in 0..60 {
-            if crossing.iterate(&cubic, rising) {
-                break;
-            }
-        }
-        edges.push((t0 + h * crossing.u, j, count_after));
+        edges.push((
+            t0 + h * solve(&cubic, e, guess.at(e), rising),
+            j,
+            count_after,
+        ));
     };
     if rising {
         for c in ca + 1..=cb {
-            solve(c, c);
+            push(c, c);
         }
     } else {
         // Downward, edge c takes the count from c to c − 1; the higher edges come first.
         for c in (cb + 1..=ca).rev() {
-            solve(c, c - 1);
+            push(c, c - 1);
         }
     }
+}
+
+/// The step's fraction where `cubic` reaches `edge`, from the guess `u`: Newton kept inside
+/// the bracket by bisection ([`Crossing`]), at most 60 iterations.
+fn solve(cubic: &Cubic, edge: f64, u: f64, rising: bool) -> f64 {
+    let mut crossing = Crossing::start(edge, u);
+    for _ in 0..60 {
+        if crossing.iterate(cubic, rising) {
+            break;
+        }
+    }
+    crossing.u
 }
 
 /// The whole counts at or below `x` (`x.floor()`, as an integer), for positions below 2^63
