@@ -6,7 +6,7 @@ use core::fmt;
 use postcard::experimental::max_size::MaxSize;
 use postcard_schema::schema::{DataModelType, NamedType};
 use postcard_schema::Schema;
-use serde::de::{Error as _, Visitor};
+use serde::de::Visitor;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -87,7 +87,9 @@ impl<'de, const N: usize> Deserialize<'de> for Bytes<N> {
                 Ok(Bytes::from_slice_truncating(v))
             }
         }
-        d.deserialize_bytes(V::<N>).map_err(D::Error::custom)
+        // The deserializer's own error as it is: postcard's `DeserializeUnexpectedEnd` is how
+        // a reader of records back to back tells a record not all there yet from a bad one.
+        d.deserialize_bytes(V::<N>)
     }
 }
 
@@ -128,5 +130,23 @@ mod tests {
         let long = Bytes::<16>::from_slice_truncating(&[7; 9]);
         let wire = postcard::to_slice(&long, &mut buf).unwrap();
         assert!(postcard::from_bytes::<Bytes<8>>(wire).is_err());
+    }
+
+    /// A reader of records back to back (`record`'s report stream) waits for the rest of a
+    /// record cut short, and refuses a bad one: the two errors must differ. (They did not: a
+    /// `Sensors` record cut in its bytes read as a bad record, and `record` stopped there.)
+    #[test]
+    fn a_record_cut_short_reads_as_unexpected_end_at_every_cut() {
+        let r = crate::spi::Report::Sensors(Bytes::from_slice_truncating(&[5; 40]));
+        let mut buf = [0u8; 64];
+        let wire = postcard::to_slice(&r, &mut buf).unwrap();
+        for cut in 0..wire.len() {
+            assert_eq!(
+                postcard::from_bytes::<crate::spi::Report>(&wire[..cut]),
+                Err(postcard::Error::DeserializeUnexpectedEnd),
+                "cut at {cut} of {}",
+                wire.len()
+            );
+        }
     }
 }
