@@ -348,6 +348,48 @@ fn a_play_after_a_slave_reset_runs_whole() {
     assert_eq!(o.board_updates, o.expected_updates);
 }
 
+/// A board that keeps talking without playing: only telemetry, fast, or the same events
+/// acknowledgement again and again. Bytes keep arriving, so a check for silence alone waited
+/// for ever; progress (an update, events acknowledged that were not) is what counts.
+#[test]
+fn a_board_that_talks_without_progress_stops_play_with_how_far_it_got() {
+    use host_bench::sim::misbehaving::Misbehaviour;
+    let dir = tempfile::tempdir().unwrap();
+    let (ticks, robot) = write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.31, 0.77, 0.05]);
+    let runs: Vec<_> = ["flood@20", "repeat-ack@20"]
+        .into_iter()
+        .map(|act| {
+            let (ticks, robot) = (ticks.clone(), robot.clone());
+            std::thread::spawn(move || {
+                let mut opts = virtual_board::Options::default();
+                opts.faults.misbehave = Some(Misbehaviour::parse(act).unwrap());
+                let board = Board::start(opts);
+                let t = std::time::Instant::now();
+                let e = play_file(&board, &ticks, &robot, PlayKind::Ticks, Default::default())
+                    .expect_err(act);
+                (act, format!("{e:#}"), t.elapsed())
+            })
+        })
+        .collect();
+    for run in runs {
+        let (act, msg, took) = run.join().unwrap();
+        assert!(
+            msg.contains("keeps talking") && msg.contains("plays nothing"),
+            "{act}: {msg}"
+        );
+        // How far it got: some updates, not all of the run's 1 000.
+        let got: u64 = msg
+            .split("after ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{act}: {msg}"));
+        assert!(got > 0 && got < 1000, "{act}: {msg}");
+        // The 5 s without progress, then the error: not the test's own timeout.
+        assert!(took.as_secs_f64() < 12.0, "{act}: {took:?}");
+    }
+}
+
 #[test]
 fn another_schema_is_refused_and_says_which() {
     let mut opts = virtual_board::Options::default();
@@ -384,6 +426,61 @@ fn a_slave_reset_stops_a_recording_where_it_happened() {
     assert!(o.seconds < 2.5 && o.ticks > 100, "{o:?}");
     let (_, score) = replay_exact(&out);
     assert!(score.final_error_m < 5e-3, "{}", score.final_error_m);
+}
+
+/// A recording that breaks off keeps what came before and says why, in its header and its
+/// outcome: a board gone silent (noticed within a second, not recorded as silence for as long
+/// as the run lasts), a record that does not decode (before: all later parsing stopped, the
+/// run said nothing and its bytes piled up), a time stamp out of range (before: multiplied
+/// into a wrap to 0 ns, truth rows at t = 0).
+#[test]
+fn a_recording_that_breaks_off_is_kept_marked_partial_with_the_reason() {
+    use host_bench::sim::misbehaving::Misbehaviour;
+    let dir = tempfile::tempdir().unwrap();
+    let runs: Vec<_> = [
+        ("stall@30", "silence", "went silent"),
+        ("bad-record@30", "undecodable record", "does not decode"),
+        ("huge-time@30", "bad value", "SimTruth.t_us"),
+    ]
+    .into_iter()
+    .map(|(act, by, says)| {
+        let out = dir.path().join(format!("{by}.csv"));
+        std::thread::spawn(move || {
+            let mut opts = virtual_board::Options::default();
+            opts.faults.misbehave = Some(Misbehaviour::parse(act).unwrap());
+            let board = Board::start(opts);
+            let mut req = board::recording(&out, None, false);
+            req.duration_s = Some(6.0);
+            let o = record::record(&mut board.link(), &req).unwrap();
+            (act, by, says, out, o)
+        })
+    })
+    .collect();
+    for run in runs {
+        let (act, by, says, out, o) = run.join().unwrap();
+        assert_eq!(o.stopped_by, by, "{act}: {o:?}");
+        let why = o
+            .partial
+            .as_deref()
+            .unwrap_or_else(|| panic!("{act}: {o:?}"));
+        assert!(why.contains(says), "{act}: {why}");
+        // Stopped soon after the trigger, not at the 6 s asked for.
+        assert!(o.seconds < 4.0 && o.ticks > 0, "{act}: {o:?}");
+        let stream = tickstream::read(&out).unwrap();
+        assert!(
+            stream.comments[0].starts_with("PARTIAL:") && stream.comments[0].contains(says),
+            "{act}: {:?}",
+            stream.comments
+        );
+        assert!(
+            stream.events.iter().all(|e| e.t_ns() < 10_000_000_000),
+            "{act}"
+        );
+        if by == "silence" {
+            // Nothing answers the switch back either; the recording is written all the same.
+            assert!(o.switch_back_failed.is_some(), "{act}: {o:?}");
+        }
+    }
 }
 
 #[test]

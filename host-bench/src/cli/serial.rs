@@ -278,11 +278,20 @@ pub fn run_record(a: RecordArgs) -> Result<()> {
             );
         }
     }
-    if outcome.stopped_by == "slave reset" {
+    // Written either way; but a recording that broke off, or a board left reading what it
+    // recorded, is not a success.
+    if let Some(why) = &outcome.partial {
         bail!(
-            "the slave reset after {:.1} s of recording: it started again from power-on, so the \
-             recording stops there ({} keeps what came before)",
+            "the recording ended early after {:.1} s: {why}. {} keeps what came before, marked \
+             PARTIAL in its header",
             outcome.seconds,
+            outcome.out
+        );
+    }
+    if let Some(e) = &outcome.switch_back_failed {
+        bail!(
+            "{} is whole, but the slave could not be switched back to its own sensors \
+             afterwards: {e}",
             outcome.out
         );
     }
@@ -389,6 +398,13 @@ pub struct VirtualBoardArgs {
     /// drawn from --seed (docs/tick-stream.md, "Encoder edges"): what `record` then records.
     #[arg(long, value_name = "ideal|typical|max", default_value = "ideal")]
     pub edges: String,
+    /// Fault injection: one deliberate failure of the board on its line to the host, once N
+    /// report frames have reached it (default 20): `stall` (silent), `flood` (only telemetry,
+    /// fast), `repeat-ack` (stale acknowledgements, no reports), `bad-record` (a report that
+    /// does not decode, in a good frame), `huge-time` (time stamps near 2^62 µs), `truncate`
+    /// (a frame cut short, then silent), `close` (hangs up), `slow` (one frame in ten).
+    #[arg(long, value_name = "ACT[@N]")]
+    pub misbehave: Option<String>,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -448,6 +464,12 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             );
         }
         opts.faults.slave_reset_at = Some(t);
+    }
+    if let Some(m) = &a.misbehave {
+        opts.faults.misbehave = Some(
+            host_bench::sim::misbehaving::Misbehaviour::parse(m)
+                .map_err(|e| anyhow::anyhow!("--misbehave {e}"))?,
+        );
     }
     if let Some(s) = &a.fault_schema {
         let fp = u32::from_str_radix(s.trim_start_matches("0x"), 16)

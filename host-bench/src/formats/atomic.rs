@@ -300,13 +300,72 @@ impl Staged {
         Ok(())
     }
 
-    /// Renames every file into place, in the order written.
+    /// Renames every file into place, in the order written, as one step: a signal that comes
+    /// meanwhile waits for the last rename (the handler takes the list's lock before it
+    /// sweeps and exits), and a rename that fails puts back what the renames before it
+    /// replaced. Either every file is new or every file is as it was.
     pub fn commit(self) -> anyhow::Result<()> {
-        for (tmp, _listed, path) in self.files {
-            rename(tmp, &path)?;
+        let mut list = partials();
+        let mut files = self.files;
+        // Unlisted here, under the lock we hold (their own drop would take it again).
+        for (_, listed, _) in &mut files {
+            if let Some(p) = listed.0.take() {
+                list.retain(|q| *q != p);
+            }
         }
+        // Each file being replaced, kept under a second name until all renames are done.
+        let mut previous = Vec::new();
+        for (_, _, path) in &files {
+            previous.push(keep_aside(path)?);
+        }
+        let mut renamed: Vec<(PathBuf, Option<tempfile::TempPath>)> = Vec::new();
+        let mut previous = previous.into_iter();
+        for (tmp, _, path) in files {
+            let aside = previous.next().flatten();
+            if let Err(e) = rename(tmp, &path) {
+                // Back as they were: the renamed ones get their previous file (or go).
+                for (path, aside) in renamed.into_iter().rev() {
+                    match aside {
+                        Some(a) => {
+                            let _ = a.persist(&path);
+                        }
+                        None => {
+                            let _ = std::fs::remove_file(&path);
+                        }
+                    }
+                }
+                return Err(e);
+            }
+            renamed.push((path, aside));
+        }
+        // The previous files' second names go before the lock does: a signal's exit must
+        // not leave them.
+        drop(renamed);
+        drop(list);
         Ok(())
     }
+}
+
+/// A second name (a hard link, `.NAME.XXXXXX.previous`, beside it) for the file at `path`, if
+/// there is one: removed when dropped, renamed back over `path` to restore it.
+fn keep_aside(path: &Path) -> anyhow::Result<Option<tempfile::TempPath>> {
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy())
+        .unwrap_or_default();
+    let link = tempfile::Builder::new()
+        .prefix(&format!(".{name}."))
+        .suffix(".previous")
+        .make_in(folder, |aside| std::fs::hard_link(path, aside))
+        .with_context(|| format!("cannot keep the previous {} aside", path.display()))?;
+    Ok(Some(link.into_temp_path()))
 }
 
 #[cfg(test)]
@@ -422,5 +481,28 @@ mod tests {
         staged.commit().unwrap();
         assert_eq!(entries(dir.path()), ["a.csv", "b.csv"]);
         assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b\n");
+    }
+
+    #[test]
+    fn a_rename_that_fails_puts_back_the_files_renamed_before_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b, c) = (
+            dir.path().join("a.csv"),
+            dir.path().join("b.csv"),
+            dir.path().join("c.csv"),
+        );
+        std::fs::write(&a, "old a\n").unwrap();
+        let mut staged = Staged::default();
+        for p in [&a, &b, &c] {
+            staged.write(p, |f| Ok(f.write_all(b"new\n")?)).unwrap();
+        }
+        // c.csv becomes a folder with a file in it after staging: its rename fails.
+        std::fs::create_dir(&c).unwrap();
+        std::fs::write(c.join("x"), "").unwrap();
+        let e = staged.commit().unwrap_err();
+        assert!(format!("{e:#}").contains("c.csv"), "{e:#}");
+        // a.csv as it was, b.csv (new) gone again, no temporary or second name left.
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a\n");
+        assert_eq!(entries(dir.path()), ["a.csv", "c.csv"]);
     }
 }

@@ -28,7 +28,9 @@ use crate::formats::robot::Robot;
 
 /// Host-side event buffer: bytes offered to the link ahead of the master's credit.
 const SEND_BUFFER: usize = 16 * 1024;
-/// No progress for this long means the board stopped answering.
+/// No progress for this long means the board stopped playing. Progress is an update reported
+/// or event bytes acknowledged that were not before: a board that keeps talking (telemetry,
+/// the same acknowledgement again) without either is stuck all the same.
 const STALL: Duration = Duration::from_secs(5);
 
 #[derive(Clone, Debug, Serialize)]
@@ -131,7 +133,7 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
     let mut mismatches = 0u64;
     let mut first_mismatch = None;
     let mut scorer = Scorer::new(stream.truth(), stream.period_us, start.to_pose2());
-    let mut last_progress = Instant::now();
+    let mut progress = Progress::new(link);
     if let Some(bar) = req.progress {
         bar.set_length(stream.updates);
     }
@@ -147,16 +149,19 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         while let Some(frame) = tx.poll_transmit(clock(wall)) {
             link.send(&HostToMaster::Events(frame))?;
         }
+        progress.see(updates, offered - tx.unacked() as u64, link);
+        if progress.since.elapsed() > link.wait(STALL) {
+            bail!(
+                "{} for {} s, after {updates} of {} updates ({} of {} event bytes \
+                 acknowledged)",
+                progress.stuck_how(link),
+                link.wait(STALL).as_secs(),
+                stream.updates,
+                progress.acked,
+                stream.wire_bytes
+            );
+        }
         let Some(msg) = link.recv(Duration::from_millis(5))? else {
-            if last_progress.elapsed() > link.wait(STALL) {
-                bail!(
-                    "the board stopped answering after {updates} of {} updates ({} of {} event \
-                     bytes acknowledged)",
-                    stream.updates,
-                    offered - tx.unacked() as u64,
-                    stream.wire_bytes
-                );
-            }
             continue;
         };
         match msg {
@@ -206,7 +211,6 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
                     }
                     let (x, y, th) = pose.to_si();
                     scorer.push(Pose2::new(x, y, th));
-                    last_progress = Instant::now();
                 }
                 Report::BadEvents { offset } => {
                     bail!("the slave could not decode the event stream at byte {offset}")
@@ -274,6 +278,45 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         final_error_m,
         max_error_m,
     })
+}
+
+/// When the play last moved on: an update more, or event bytes acknowledged that were not.
+struct Progress {
+    since: Instant,
+    updates: u64,
+    acked: u64,
+    /// What the board had sent when the play last moved on.
+    bytes_then: u64,
+}
+
+impl Progress {
+    fn new(link: &Link) -> Self {
+        Progress {
+            since: Instant::now(),
+            updates: 0,
+            acked: 0,
+            bytes_then: link.stats.bytes_received,
+        }
+    }
+
+    fn see(&mut self, updates: u64, acked: u64, link: &Link) {
+        if updates > self.updates || acked > self.acked {
+            self.since = Instant::now();
+            self.updates = updates;
+            self.acked = acked;
+            self.bytes_then = link.stats.bytes_received;
+        }
+    }
+
+    fn stuck_how(&self, link: &Link) -> String {
+        match link.stats.bytes_received - self.bytes_then {
+            0 => "the board stopped answering: nothing received".into(),
+            n => format!(
+                "the board keeps talking ({n} bytes) but plays nothing: no update reported and \
+                 no event acknowledged that was not before"
+            ),
+        }
+    }
 }
 
 /// Error of the board's poses against the truth rows, as the poses come: the board's pose at a

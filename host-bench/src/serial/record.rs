@@ -52,6 +52,31 @@ pub struct RecordOutcome {
     pub lost_events: u64,
     pub lost_updates: u64,
     pub stopped_by: String,
+    /// Why the recording ended before the user stopped it (the board went silent, a record
+    /// did not decode, a value out of range, the slave reset, the port failed), as the
+    /// stream's header says; `None` when it ran until Ctrl-C or `--duration`.
+    pub partial: Option<String>,
+    /// The slave could not be switched back to its own sensors afterwards (the recording is
+    /// written all the same).
+    pub switch_back_failed: Option<String>,
+}
+
+/// No new record for this long: the board went silent. A recording slave sends its pose every
+/// [`POSE_EVERY`] updates (50 ms at 1 kHz) even when the robot stands still.
+const SILENCE: Duration = Duration::from_secs(1);
+
+/// Latest time stamp a board may send, in microseconds (about 285 years): a larger one is no
+/// clock reading, and in nanoseconds it would not fit the stream's 64 bits.
+const MAX_T_US: u64 = u64::MAX / 1000 / 2;
+
+/// A board's time stamp in nanoseconds, or why it is refused (`what` names the field).
+fn board_ns(t_us: u64, what: &str) -> std::result::Result<u64, String> {
+    if t_us > MAX_T_US {
+        return Err(format!(
+            "the board sent {what} = {t_us} us, beyond any clock reading (at most {MAX_T_US})"
+        ));
+    }
+    Ok(t_us * 1000)
 }
 
 /// The seed 004 robot file, for recordings of the slave's power-on robot.
@@ -175,31 +200,50 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
     };
     let mut edges = EventDecoder::new();
     let period_us = info.period_us.max(1) as u64;
-    let stopped_by;
-    loop {
+    // Where the report stream is (bytes decoded so far), and when its last record came.
+    let mut stream_offset = 0u64;
+    let mut last_record = Instant::now();
+    // Why it stopped: the user's stop (`Ok`) or an early end (`Err`, the reason).
+    let stopped: std::result::Result<&str, Early> = loop {
         if stop.load(Ordering::Relaxed) {
-            stopped_by = "ctrl-c";
-            break;
+            break Ok("ctrl-c");
         }
         if req
             .duration_s
             .is_some_and(|d| wall.elapsed().as_secs_f64() >= d)
         {
-            stopped_by = "duration";
-            break;
+            break Ok("duration");
         }
         // A stream is read back whole into memory: a recording stops at what a reader takes.
         let most = crate::formats::tickstream::MAX_EVENTS;
         if c.rows.len() >= most || c.board.len() >= crate::eval::board_poses::MAX_ROWS {
-            stopped_by = "size limit";
-            break;
+            break Err(Early::new(
+                "size limit",
+                "the stream reached its size limit (docs/limits.md)",
+            ));
+        }
+        if last_record.elapsed() > SILENCE {
+            break Err(Early::new(
+                "silence",
+                format!(
+                    "the board went silent: no report for {} s",
+                    SILENCE.as_secs()
+                ),
+            ));
         }
         if let Some(bar) = req.progress {
             bar.set_message(format!("{} ticks, {} truth rows", c.ticks, c.truth));
             bar.tick();
         }
-        let Some(msg) = link.recv(Duration::from_millis(10))? else {
-            continue;
+        let msg = match link.recv(Duration::from_millis(10)) {
+            Ok(Some(msg)) => msg,
+            Ok(None) => continue,
+            Err(e) => {
+                break Err(Early::new(
+                    "port failure",
+                    format!("the port failed: {e:#}"),
+                ))
+            }
         };
         match msg {
             MasterToHost::Reports(frame) => {
@@ -211,13 +255,19 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             // The slave started again from power-on: its clock, pose and settings are new,
             // so what comes after does not continue this recording.
             MasterToHost::Telemetry(t) if t.status & serial_status::SLAVE_RESET != 0 => {
-                stopped_by = "slave reset";
-                break;
+                break Err(Early::new(
+                    "slave reset",
+                    "the slave reset (it started again from power-on)",
+                ));
             }
             MasterToHost::SimTruth { t_us, pose } => {
+                let t_ns = match board_ns(t_us, "a true pose's time stamp (SimTruth.t_us)") {
+                    Ok(t) => t,
+                    Err(e) => break Err(Early::new("bad value", e)),
+                };
                 let (x_m, y_m, theta_rad) = pose.to_si();
                 c.rows.push(Row::Truth {
-                    t_ns: t_us * 1000,
+                    t_ns,
                     x_m,
                     y_m,
                     theta_rad,
@@ -227,34 +277,107 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             _ => {}
         }
         if let Some(a) = rx.poll_ack() {
-            link.send(&HostToMaster::ReportsAck(a))?;
+            if let Err(e) = link.send(&HostToMaster::ReportsAck(a)) {
+                break Err(Early::new(
+                    "port failure",
+                    format!("the port failed: {e:#}"),
+                ));
+            }
         }
-        let mut rest: &[u8] = &bytes;
-        while let Ok((r, tail)) = postcard::take_from_bytes::<Report>(rest) {
-            rest = tail;
-            take_report(r, &mut c, &mut edges)?;
+        match take_reports(&mut bytes, &mut stream_offset, &mut c, &mut edges) {
+            Ok(0) => {}
+            Ok(_) => last_record = Instant::now(),
+            Err(e) => break Err(e),
         }
-        let used = bytes.len() - rest.len();
-        bytes.drain(..used);
-    }
+    };
     let seconds = wall.elapsed().as_secs_f64();
-    session::set_method_and_source(
-        link,
-        method,
-        SensorSource::Ticks,
-        Reports::Off,
-        protocol::Pose::default(),
-    )
-    .context("switching the slave back to its own sensors")?;
-    write(
+    // A board that went silent or a port that failed will not answer this either.
+    let switch_back_failed = match &stopped {
+        Err(early) if early.by == "port failure" => Some("not tried: the port failed".to_string()),
+        _ => session::set_method_and_source(
+            link,
+            method,
+            SensorSource::Ticks,
+            Reports::Off,
+            protocol::Pose::default(),
+        )
+        .err()
+        .map(|e| format!("{e:#}")),
+    };
+    let mut outcome = write(
         req,
         &robot_text,
         &robot_name,
         c,
         seconds,
         period_us,
-        stopped_by,
-    )
+        &stopped,
+    )?;
+    outcome.switch_back_failed = switch_back_failed;
+    Ok(outcome)
+}
+
+/// Why a recording ended before the user stopped it: a short name (`stopped_by`) and what
+/// happened, for the stream's header and the error.
+#[derive(Debug)]
+struct Early {
+    by: &'static str,
+    why: String,
+}
+
+impl Early {
+    fn new(by: &'static str, why: impl Into<String>) -> Self {
+        Early {
+            by,
+            why: why.into(),
+        }
+    }
+}
+
+/// The whole records at the front of `bytes` into the collection (a partial one waits for its
+/// remaining bytes); how many. A record that does not decode ends the recording: records are
+/// written back to back without framing, so nothing after it can be told apart.
+fn take_reports(
+    bytes: &mut Vec<u8>,
+    offset: &mut u64,
+    c: &mut Collected,
+    edges: &mut EventDecoder,
+) -> std::result::Result<usize, Early> {
+    let mut rest: &[u8] = bytes;
+    let mut n = 0;
+    let result = loop {
+        match postcard::take_from_bytes::<Report>(rest) {
+            Ok((r, tail)) => {
+                let at = *offset + (bytes.len() - rest.len()) as u64;
+                if let Err(e) = take_report(r, c, edges) {
+                    break Err(Early::new(
+                        "bad value",
+                        format!("report record at byte {at} of the report stream: {e}"),
+                    ));
+                }
+                rest = tail;
+                n += 1;
+            }
+            Err(postcard::Error::DeserializeUnexpectedEnd) => break Ok(n),
+            Err(e) => {
+                let at = *offset + (bytes.len() - rest.len()) as u64;
+                break Err(Early::new(
+                    "undecodable record",
+                    format!(
+                        "the report record at byte {at} of the report stream does not decode \
+                         ({e}): the records after it cannot be told apart"
+                    ),
+                ));
+            }
+        }
+    };
+    let used = bytes.len() - rest.len();
+    *offset += used as u64;
+    bytes.drain(..used);
+    if result.is_err() {
+        bytes.clear(); // nothing of it is read any more
+    }
+    result
 }
 
 /// The newest true pose a simulated board sends within 50 ms (none from a real board).
@@ -271,39 +394,55 @@ fn latest_truth(link: &mut Link) -> Result<Option<protocol::Pose>> {
 
 /// One report record into the collection. In counts mode the slave reports each update's
 /// count changes as that many ticks at the update instant, so both modes decode alike.
-fn take_report(r: Report, c: &mut Collected, edges: &mut EventDecoder) -> Result<()> {
+fn take_report(
+    r: Report,
+    c: &mut Collected,
+    edges: &mut EventDecoder,
+) -> std::result::Result<(), String> {
     match r {
         Report::Sensors(b) => {
             let mut err = None;
             edges.feed(b.as_slice(), |e| match e {
+                _ if err.is_some() => {}
                 Ok(Event::Tick {
                     t_us,
                     encoder,
                     step,
-                }) => {
-                    c.ticks += 1;
-                    c.rows.push(Row::Tick {
-                        t_ns: t_us * 1000,
-                        encoder: encoder as u16,
-                        step: step.delta(),
-                    });
-                }
+                }) => match board_ns(t_us, "an edge's time stamp (Sensors, Tick.t_us)") {
+                    Ok(t_ns) => {
+                        c.ticks += 1;
+                        c.rows.push(Row::Tick {
+                            t_ns,
+                            encoder: encoder as u16,
+                            step: step.delta(),
+                        });
+                    }
+                    Err(e) => err = Some(e),
+                },
                 Ok(Event::Abs { .. }) if !c.has_abs => {}
                 Ok(Event::Abs { t_us, code }) => {
-                    c.abs += 1;
-                    c.rows.push(Row::Abs {
-                        t_ns: t_us * 1000,
-                        encoder: 0,
-                        code: code as u32,
-                    });
+                    match board_ns(t_us, "an absolute reading's time stamp (Sensors, Abs.t_us)") {
+                        Ok(t_ns) => {
+                            c.abs += 1;
+                            c.rows.push(Row::Abs {
+                                t_ns,
+                                encoder: 0,
+                                code: code as u32,
+                            });
+                        }
+                        Err(e) => err = Some(e),
+                    }
                 }
-                Err(e) => err = Some(e),
+                Err(e) => err = Some(format!("the slave's sensor events do not decode: {e:?}")),
             });
             if let Some(e) = err {
-                bail!("the slave's sensor report did not decode: {e:?}");
+                return Err(e);
             }
         }
-        Report::PoseAt { t_us, pose } => c.board.push((t_us * 1000, pose)),
+        Report::PoseAt { t_us, pose } => c.board.push((
+            board_ns(t_us, "a board pose's time stamp (PoseAt.t_us)")?,
+            pose,
+        )),
         Report::Lost { events, updates } => {
             c.lost_events += events as u64;
             c.lost_updates += updates as u64;
@@ -320,8 +459,12 @@ fn write(
     mut c: Collected,
     seconds: f64,
     period_us: u64,
-    stopped_by: &str,
+    stopped: &std::result::Result<&str, Early>,
 ) -> Result<RecordOutcome> {
+    let (stopped_by, partial) = match stopped {
+        Ok(by) => (by.to_string(), None),
+        Err(early) => (early.by.to_string(), Some(early.why.clone())),
+    };
     if c.rows.iter().all(|r| matches!(r, Row::Truth { .. })) {
         bail!(
             "nothing recorded in {seconds:.1} s: no encoder event reached the host (is the \
@@ -372,7 +515,15 @@ fn write(
     let robot_file = robot_path
         .file_name()
         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-    let mut comments = vec![
+    let mut comments = Vec::new();
+    if let Some(why) = &partial {
+        // First, where a reader looks: this stream ends where the recording broke off.
+        comments.push(format!(
+            "PARTIAL: the recording ended early after {seconds:.3} s: {why}; the stream holds \
+             what came before"
+        ));
+    }
+    comments.extend([
         format!("recorded by host-bench record from robot {robot_name} ({stopped_by} after {seconds:.3} s)"),
         if req.counts {
             format!(
@@ -384,7 +535,7 @@ fn write(
         } else {
             "sensor: timestamps (every edge, time-stamped by the slave in microseconds)".into()
         },
-    ];
+    ]);
     if c.lost_events > 0 || c.lost_updates > 0 {
         comments.push(format!(
             "GAPS: the link could not keep up; the slave dropped {} encoder events and {} \
@@ -402,29 +553,24 @@ fn write(
         comments,
         events: c.rows,
     };
-    // The stream first (it is checked as it is written), then the files beside it; if one
-    // of those fails, nothing of this recording is left behind.
-    tickstream::write(out, &stream)?;
-    let beside = (|| -> Result<()> {
-        crate::formats::atomic::write_atomically(&dir.join(&robot_file), |f| {
-            f.write_all(robot_text.as_bytes())?;
-            Ok(())
-        })?;
-        let mut poses = String::from("t_ns,x_m,y_m,theta_rad\n");
-        for (t, p) in &c.board {
-            let (x, y, th) = p.to_si();
-            poses.push_str(&format!("{},{x},{y},{th}\n", t.saturating_sub(t0)));
-        }
-        crate::formats::atomic::write_atomically(&board_file, |f| {
-            f.write_all(poses.as_bytes())?;
-            Ok(())
-        })
-    })();
-    if let Err(e) = beside {
-        let _ = std::fs::remove_file(out);
-        let _ = std::fs::remove_file(dir.join(&robot_file));
-        return Err(e);
+    // The three files appear together or not at all, and until they do, a recording of the
+    // same name from before stays whole (`atomic::Staged`).
+    let mut staged = crate::formats::atomic::Staged::default();
+    tickstream::stage(&mut staged, out, &stream)?;
+    staged.write(&dir.join(&robot_file), |f| {
+        f.write_all(robot_text.as_bytes())?;
+        Ok(())
+    })?;
+    let mut poses = String::from("t_ns,x_m,y_m,theta_rad\n");
+    for (t, p) in &c.board {
+        let (x, y, th) = p.to_si();
+        poses.push_str(&format!("{},{x},{y},{th}\n", t.saturating_sub(t0)));
     }
+    staged.write(&board_file, |f| {
+        f.write_all(poses.as_bytes())?;
+        Ok(())
+    })?;
+    staged.commit()?;
     Ok(RecordOutcome {
         out: out.display().to_string(),
         robot_file: dir.join(&robot_file).display().to_string(),
@@ -437,6 +583,8 @@ fn write(
         board_poses: c.board.len() as u64,
         lost_events: c.lost_events,
         lost_updates: c.lost_updates,
-        stopped_by: stopped_by.into(),
+        stopped_by,
+        partial,
+        switch_back_failed: None,
     })
 }

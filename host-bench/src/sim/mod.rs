@@ -3,6 +3,7 @@
 
 pub mod emulator;
 pub mod generate;
+pub mod misbehaving;
 pub mod plant;
 pub mod serial_noise;
 pub mod trajectory;

@@ -56,6 +56,9 @@ pub struct Faults {
     /// Reset the slave this many seconds after the board started (it runs again from
     /// power-on 5 ms later).
     pub slave_reset_at: Option<f64>,
+    /// One deliberate failure on the line to the host (stall, flood, ...), once that many
+    /// report frames have reached it.
+    pub misbehave: Option<super::misbehaving::Misbehaviour>,
 }
 
 #[derive(Clone, Debug)]
@@ -265,6 +268,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     let f = &opts.faults;
     let mut noise_to_master = SerialNoise::new(f.serial, opts.seed ^ 0x5e1a, Receiver::Master);
     let mut noise_to_host = SerialNoise::new(f.serial, opts.seed ^ 0x5e1b, Receiver::Host);
+    let mut misbehaving = f.misbehave.map(super::misbehaving::MisbehavingLine::new);
     let to_master: SharedLine = Rc::default();
     let to_host: SharedLine = Rc::default();
     let byte_time = byte_time(opts.master.baud);
@@ -354,7 +358,13 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
                 out.extend_from_slice(frame);
             }
         }
-        let out = noise_to_host.pass(&out);
+        let mut out = noise_to_host.pass(&out);
+        if let Some(line) = &mut misbehaving {
+            out = line.pass(&out);
+            if line.hung_up() {
+                return Ok(()); // the port closes with `pty`
+            }
+        }
         if !out.is_empty() {
             // Nobody reading: the bytes are lost, as on a UART with nothing attached.
             let _ = pty.write_all(&out);

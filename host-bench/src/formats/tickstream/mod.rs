@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 pub use event::Event;
 pub use lines::Lines;
 pub use read::{read, read_checked, read_from, read_with_lines, RowCheck};
-pub use write::write;
+pub use write::{stage, write};
 
 mod event;
 mod lines;

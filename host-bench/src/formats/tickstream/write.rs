@@ -12,7 +12,7 @@ use super::{
     is_gz_name, Event, TickStream, COLUMNS, MAGIC, MAX_TRUTH_COORDINATE_M, MAX_TRUTH_HEADING_RAD,
     WRITE_BUFFER_BYTES,
 };
-use crate::formats::atomic::write_atomically;
+use crate::formats::atomic::{write_atomically, Staged};
 
 /// Writes a tick stream: gzip-compressed if `path` ends in `.gz`. The stream is checked first
 /// (time order, steps of ±1, finite truth, comments that read back as written), then written
@@ -20,6 +20,12 @@ use crate::formats::atomic::write_atomically;
 pub fn write(path: &Path, stream: &TickStream) -> anyhow::Result<()> {
     validate(stream).with_context(|| format!("not writing {}", path.display()))?;
     write_atomically(path, |file| write_file(file, is_gz_name(path), stream))
+}
+
+/// [`write`] as one of several files that appear together ([`Staged::commit`]).
+pub fn stage(staged: &mut Staged, path: &Path, stream: &TickStream) -> anyhow::Result<()> {
+    validate(stream).with_context(|| format!("not writing {}", path.display()))?;
+    staged.write(path, |file| write_file(file, is_gz_name(path), stream))
 }
 
 fn validate(stream: &TickStream) -> anyhow::Result<()> {
