@@ -317,6 +317,18 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
     Ok(outcome)
 }
 
+/// The signal test's lever (`tests/bench_cli.rs`): `OMNIBENCH_RECORD_WRITE_PAUSE_MS` widens
+/// the final write, a few milliseconds on its own, so that signals sent at random moments land
+/// inside it between one file and the next, where a set written file by file would be torn.
+fn pause_for_signal_tests() {
+    if let Some(ms) = std::env::var("OMNIBENCH_RECORD_WRITE_PAUSE_MS")
+        .ok()
+        .and_then(|v| v.parse::<u64>().ok())
+    {
+        std::thread::sleep(Duration::from_millis(ms.min(1000)));
+    }
+}
+
 /// Why a recording ended before the user stopped it: a short name (`stopped_by`) and what
 /// happened, for the stream's header and the error.
 #[derive(Debug)]
@@ -557,10 +569,12 @@ fn write(
     // same name from before stays whole (`atomic::Staged`).
     let mut staged = crate::formats::atomic::Staged::default();
     tickstream::stage(&mut staged, out, &stream)?;
+    pause_for_signal_tests();
     staged.write(&dir.join(&robot_file), |f| {
         f.write_all(robot_text.as_bytes())?;
         Ok(())
     })?;
+    pause_for_signal_tests();
     let mut poses = String::from("t_ns,x_m,y_m,theta_rad\n");
     for (t, p) in &c.board {
         let (x, y, th) = p.to_si();
@@ -570,6 +584,7 @@ fn write(
         f.write_all(poses.as_bytes())?;
         Ok(())
     })?;
+    pause_for_signal_tests();
     staged.commit()?;
     Ok(RecordOutcome {
         out: out.display().to_string(),
