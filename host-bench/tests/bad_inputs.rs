@@ -750,3 +750,86 @@ fn what_the_master_would_refuse_is_refused_at_the_scenario_key() {
         refused(&["emulate", "--scenario", &path], says, None);
     }
 }
+
+/// Outputs that are inputs, outputs checked late, options that contradict each other: each
+/// refused before any work, the inputs left as they were.
+#[test]
+fn outputs_are_checked_first_and_never_write_over_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_host-bench");
+    let run = |args: &[&str]| {
+        let t = Instant::now();
+        let o = Command::new(bin).args(args).output().unwrap();
+        (o, t.elapsed().as_secs_f64())
+    };
+    // A scenario kept as run.csv, its robot as summary.json, in the folder `--out` names:
+    // the run's run.csv and summary.json would replace them.
+    let robot = std::fs::read_to_string(repo("robots/seed002.toml")).unwrap();
+    let scenario = std::fs::read_to_string(repo("scenarios/seed002-square.toml"))
+        .unwrap()
+        .replace("../robots/seed002.toml", "summary.json");
+    let as_input = dir.path().join("as-input");
+    std::fs::create_dir(&as_input).unwrap();
+    let robot_path = file(&as_input, "summary.json", &robot);
+    let out_dir = as_input.to_str().unwrap();
+    // Kept as run.csv, the scenario is named; kept as scenario.toml, its robot file is.
+    for (name, what) in [
+        ("run.csv", "is the scenario file"),
+        ("scenario.toml", "is the scenario's robot file"),
+    ] {
+        let scenario_path = file(&as_input, name, &scenario);
+        let (o, _) = run(&[
+            "emulate",
+            "--scenario",
+            &scenario_path,
+            "--duration",
+            "1",
+            "--out",
+            out_dir,
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(
+            err.contains(what) && err.contains("would write over its own input"),
+            "{name}: {err}"
+        );
+        assert_eq!(std::fs::read_to_string(&scenario_path).unwrap(), scenario);
+    }
+    assert_eq!(std::fs::read_to_string(&robot_path).unwrap(), robot);
+
+    // pursuit-sweep's picture: a folder that is not there, or a name that is not .svg, is
+    // refused at once, not after a sweep of minutes; the file of that name stays.
+    let notes = file(dir.path(), "notes.txt", "mine\n");
+    for (out, says) in [
+        (dir.path().join("nodir/p.svg"), "does not exist"),
+        (Path::new(&notes).to_path_buf(), "name a .svg file"),
+    ] {
+        let (o, took) = run(&[
+            "pursuit-sweep",
+            "--duration",
+            "3600",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(says), "{out:?}: {err}");
+        assert!(took < 5.0, "{out:?}: refused after {took} s");
+    }
+    assert_eq!(std::fs::read_to_string(&notes).unwrap(), "mine\n");
+
+    // A slave switched off cannot reset: the two faults together are refused.
+    refused(
+        &[
+            "emulate",
+            "--duration",
+            "5",
+            "--fault-slave-off-at",
+            "1",
+            "--fault-slave-reset-at",
+            "2",
+        ],
+        "contradict each other",
+        None,
+    );
+}

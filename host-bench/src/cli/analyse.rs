@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use host_bench::formats::atomic::{check_output, OutputDir, Staged};
 
 /// Most power-on seeds per accuracy case (each case replays every method once per seed).
@@ -102,21 +102,7 @@ fn output_dir(
     inputs: &[(&str, &Path)],
 ) -> anyhow::Result<OutputDir> {
     let flag = || format!("--out {}", dir.display());
-    for file in files {
-        let Ok(canonical) = file.canonicalize() else {
-            continue; // not there yet: no input of the run
-        };
-        for (what, input) in inputs {
-            if input.canonicalize().is_ok_and(|i| i == canonical) {
-                bail!(
-                    "{}: {} is {what} ({}): the run would write over its own input",
-                    flag(),
-                    file.display(),
-                    input.display()
-                );
-            }
-        }
-    }
+    host_bench::formats::atomic::refuse_inputs(&flag(), files, inputs)?;
     let made = OutputDir::create(dir).with_context(flag)?;
     for file in files {
         check_output(file).with_context(flag)?;

@@ -25,6 +25,10 @@ pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
             path.display()
         );
     }
+    if let Some(path) = &out {
+        host_bench::formats::atomic::check_output(path)
+            .with_context(|| format!("--out {}", path.display()))?;
+    }
     let e = envelope::run(d_um as f64 * 1e-6, geometry.v_max_um_s as f64 * 1e-6)?;
     if let Some(path) = &out {
         write_svg(&e, path)?;

@@ -18,6 +18,16 @@ pub fn run_pursuit_sweep(json: bool, duration: f64, out: Option<PathBuf>) -> Res
         "--duration must be 10 s to 3600 s (the target stops after 7.1 s; the hold is scored \
          from 1 s later)"
     );
+    // Checked before the sweep (minutes at a long --duration), not after it.
+    if let Some(path) = &out {
+        anyhow::ensure!(
+            path.extension().is_some_and(|e| e == "svg"),
+            "--out {}: the plot is drawn as SVG; name a .svg file",
+            path.display()
+        );
+        host_bench::formats::atomic::check_output(path)
+            .with_context(|| format!("--out {}", path.display()))?;
+    }
     let sweep = run(&PERIODS_S, duration)?;
     if let Some(path) = &out {
         write_svg(&sweep, path)?;

@@ -212,6 +212,17 @@ pub fn emulate_into(
         dir.join("path.svg"),
         dir.join("summary.json"),
     );
+    let what = ["the scenario file", "the scenario's robot file"];
+    let inputs: Vec<(&str, &Path)> = what
+        .iter()
+        .zip(&scenario.source_files)
+        .map(|(w, p)| (*w, p.as_path()))
+        .collect();
+    crate::formats::atomic::refuse_inputs(
+        &format!("--out {}", dir.display()),
+        &[csv_path.clone(), svg_path.clone(), json_path.clone()],
+        &inputs,
+    )?;
     for p in [&csv_path, &svg_path, &json_path] {
         crate::formats::atomic::check_output(p)
             .with_context(|| format!("--out {}", dir.display()))?;

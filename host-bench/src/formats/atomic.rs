@@ -181,6 +181,30 @@ pub fn check_output(path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses outputs that are one of the run's `inputs` (what each is, and its path), compared
+/// as canonical paths (an output not there yet is no input). `flag` names the option.
+pub fn refuse_inputs(
+    flag: &str,
+    outputs: &[PathBuf],
+    inputs: &[(&str, &Path)],
+) -> anyhow::Result<()> {
+    for file in outputs {
+        let Ok(canonical) = file.canonicalize() else {
+            continue;
+        };
+        for (what, input) in inputs {
+            if input.canonicalize().is_ok_and(|i| i == canonical) {
+                anyhow::bail!(
+                    "{flag}: {} is {what} ({}): the run would write over its own input",
+                    file.display(),
+                    input.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Takes a temporary file off the list when the write is over, whichever way it ended.
 struct Listed(Option<PathBuf>);
 

@@ -415,15 +415,23 @@ impl TomlFile<'_> {
             encoder_phase,
             encoder_edges,
             faults,
+            source_files: std::iter::once(self.path.to_path_buf())
+                .chain(raw.robot.as_ref().map(|r| self.robot_path(r)))
+                .collect(),
         })
     }
 
-    fn robot(&self, r: &Spanned<String>) -> Result<Robot> {
+    /// The robot file a scenario names, relative to the scenario's folder.
+    fn robot_path(&self, r: &Spanned<String>) -> PathBuf {
         let rel = PathBuf::from(r.get_ref());
-        let path = match self.path.parent() {
+        match self.path.parent() {
             Some(dir) if rel.is_relative() => dir.join(&rel),
             _ => rel,
-        };
+        }
+    }
+
+    fn robot(&self, r: &Spanned<String>) -> Result<Robot> {
+        let path = self.robot_path(r);
         Robot::load(&path).map_err(|e: FileError| {
             anyhow!(self.at(
                 r.span(),

@@ -76,6 +76,10 @@ pub struct Scenario {
     /// Where each measuring-wheel encoder stands within its count at power-on (None: drawn
     /// from the run's seed).
     pub encoder_phase: Option<[f64; 2]>,
+    /// The files it was read from (the scenario file, the robot file it names): what a run's
+    /// outputs must not write over. Empty for a built-in.
+    #[serde(skip)]
+    pub source_files: Vec<std::path::PathBuf>,
     /// Where the measuring encoders put their edges (ideal, or a datasheet's errors).
     #[serde(skip)]
     pub encoder_edges: crate::sim::generate::EdgeErrors,
@@ -132,6 +136,7 @@ impl Scenario {
             encoder_phase: None,
             encoder_edges: crate::sim::generate::EdgeErrors::IDEAL,
             faults: Faults::default(),
+            source_files: Vec::new(),
         }
     }
 

@@ -140,6 +140,18 @@ pub fn check_options(opts: &Options) -> Result<()> {
             );
         }
     }
+    // A slave without power cannot reset: the reset would never be seen, and the run would
+    // pass for one that tested it.
+    if let (Some(off), Some(reset)) = (opts.faults.slave_off_at, opts.faults.slave_reset_at) {
+        if reset >= off {
+            bail!(
+                "--fault-slave-reset-at {reset:?} s and --fault-slave-off-at {off:?} s \
+                 (scenario: faults.slave_reset_at_s, faults.slave_off_at_s) contradict each \
+                 other: the slave is off from {off:?} s, so a reset at {reset:?} s never \
+                 happens. Reset it before it goes off, or test one fault per run"
+            );
+        }
+    }
     if let Some(t) = opts.faults.slave_reset_at {
         // The master tells a reset by the slave's clock starting again: it must have learned
         // that clock first, and have a few polls after the reboot to see it.
