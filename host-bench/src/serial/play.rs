@@ -310,7 +310,8 @@ impl Progress {
 
     fn stuck_how(&self, link: &Link) -> String {
         match link.stats.bytes_received - self.bytes_then {
-            0 => "the board stopped answering: nothing received".into(),
+            // Less than a frame or two: what was on its way when it stopped.
+            n if n < 64 => format!("the board stopped answering ({n} bytes received)"),
             n => format!(
                 "the board keeps talking ({n} bytes) but plays nothing: no update reported and \
                  no event acknowledged that was not before"

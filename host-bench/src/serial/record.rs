@@ -203,6 +203,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
     // Where the report stream is (bytes decoded so far), and when its last record came.
     let mut stream_offset = 0u64;
     let mut last_record = Instant::now();
+    let mut bytes_at_record = link.stats.bytes_received;
     // Why it stopped: the user's stop (`Ok`) or an early end (`Err`, the reason).
     let stopped: std::result::Result<&str, Early> = loop {
         if stop.load(Ordering::Relaxed) {
@@ -223,12 +224,13 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             ));
         }
         if last_record.elapsed() > SILENCE {
+            let why = match link.stats.bytes_received - bytes_at_record {
+                n if n < 64 => "the board went silent".to_string(),
+                n => format!("the board sends ({n} bytes) but no reports"),
+            };
             break Err(Early::new(
                 "silence",
-                format!(
-                    "the board went silent: no report for {} s",
-                    SILENCE.as_secs()
-                ),
+                format!("{why}: no report for {} s", SILENCE.as_secs()),
             ));
         }
         if let Some(bar) = req.progress {
@@ -286,7 +288,10 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         }
         match take_reports(&mut bytes, &mut stream_offset, &mut c, &mut edges) {
             Ok(0) => {}
-            Ok(_) => last_record = Instant::now(),
+            Ok(_) => {
+                last_record = Instant::now();
+                bytes_at_record = link.stats.bytes_received;
+            }
             Err(e) => break Err(e),
         }
     };

@@ -77,6 +77,20 @@ fn check(info: BoardInfo) -> Result<BoardInfo> {
             ours
         );
     }
+    // Checked before any arithmetic with it (the played stream's updates, the recording's
+    // clock): a slave image updates at one of the rates it can be built for.
+    let rates = firmware_slave::board_rate::BOARD_RATES_HZ;
+    if !rates
+        .iter()
+        .any(|&hz| firmware_slave::board_rate::period_us(hz) == Some(info.period_us))
+    {
+        bail!(
+            "the master reports the slave's update period BoardInfo.period_us = {} us, which \
+             is none of the rates a slave image is built for ({rates:?} Hz): not a board this \
+             host-bench can trust",
+            info.period_us
+        );
+    }
     if !info.slave_seen {
         bail!(
             "the master answers but has no valid frame from the slave: check the SPI wiring \
@@ -214,4 +228,40 @@ pub fn set_method_and_source(
         ),
         |i| i.source == source && i.algorithm == alg,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(period_us: u32) -> BoardInfo {
+        BoardInfo {
+            protocol_version: PROTOCOL_VERSION,
+            schema_fingerprint: protocol::schema_fingerprint(),
+            firmware_version: [0, 1, 0],
+            master_uid: [0; 12],
+            slave_seen: true,
+            robot: 0,
+            source: SensorSource::Ticks,
+            period_us,
+            algorithm: OdometryAlgorithm::Exact,
+            baud: 115_200,
+        }
+    }
+
+    /// The board's own numbers are checked before anything is computed with them: an update
+    /// period no slave image has (0, 999, 2^32 - 1 µs) is refused at the handshake.
+    #[test]
+    fn an_update_period_no_slave_image_has_is_refused_naming_the_field() {
+        for good in [1000, 500, 200, 100] {
+            assert!(check(info(good)).is_ok(), "{good}");
+        }
+        for bad in [0, 999, u32::MAX] {
+            let e = check(info(bad)).unwrap_err().to_string();
+            assert!(
+                e.contains("BoardInfo.period_us") && e.contains(&bad.to_string()),
+                "{e}"
+            );
+        }
+    }
 }
