@@ -371,8 +371,16 @@ fn a_board_that_talks_without_progress_stops_play_with_how_far_it_got() {
             })
         })
         .collect();
+    // A play that never ends is the failure this test is for: waited for 30 s, not for ever.
+    let (done, finished) = std::sync::mpsc::channel();
     for run in runs {
-        let (act, msg, took) = run.join().unwrap();
+        let done = done.clone();
+        std::thread::spawn(move || done.send(run.join().unwrap()));
+    }
+    for _ in 0..2 {
+        let (act, msg, took) = finished
+            .recv_timeout(std::time::Duration::from_secs(30))
+            .expect("a play against a board that talks without playing never ended");
         assert!(
             msg.contains("keeps talking") && msg.contains("plays nothing"),
             "{act}: {msg}"

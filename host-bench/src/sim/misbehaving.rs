@@ -15,11 +15,11 @@ use protocol::serial::{self, FrameDecoder, MasterToHost};
 pub enum Act {
     /// Nothing more reaches the host: the board went silent.
     Stall,
-    /// Only telemetry reaches the host, and as fast as the line takes it: a board that talks
-    /// and does nothing else.
+    /// Only telemetry reaches the host, the line kept full of it: a board that talks and does
+    /// nothing else.
     Flood,
     /// The last acknowledgement sent before the trigger, again and again (in place of the
-    /// master's own, and as fast as `flood`), and no more reports; telemetry still passes:
+    /// master's own, the line kept full as by `flood`), and no more reports; telemetry passes:
     /// stale acknowledgements, no progress.
     RepeatAck,
     /// The triggering report frame's bytes are replaced by bytes that are no report record
@@ -85,7 +85,12 @@ pub struct MisbehavingLine {
     last_telemetry: Option<MasterToHost>,
     frames_since: u32,
     closed: bool,
+    /// When the last round's repeated frames went out (`flood`, `repeat-ack`).
+    flooded_at: Option<std::time::Instant>,
 }
+
+/// What 115 200 baud carries, bytes a second (10 bits a byte).
+const LINE_BYTES_PER_S: f64 = 11_520.0;
 
 impl MisbehavingLine {
     pub fn new(what: Misbehaviour) -> Self {
@@ -98,6 +103,7 @@ impl MisbehavingLine {
             last_telemetry: None,
             frames_since: 0,
             closed: false,
+            flooded_at: None,
         }
     }
 
@@ -133,11 +139,17 @@ impl MisbehavingLine {
         };
         if self.triggered {
             if let Some(t) = again {
-                // One more each round of the board's loop (about 2 000 a second, more than a
-                // real board's telemetry by far).
+                // The line kept full: as many frames as 115 200 baud carries in the time
+                // since the last round (at least one), so the host never waits for a byte.
                 let mut f = [0u8; serial::MAX_FRAME];
                 if let Ok(frame) = serial::encode(t, &mut f) {
-                    out.extend_from_slice(frame);
+                    let now = std::time::Instant::now();
+                    let since = self.flooded_at.map_or(0.0, |t| (now - t).as_secs_f64());
+                    self.flooded_at = Some(now);
+                    let n = ((since * LINE_BYTES_PER_S) as usize / frame.len()).clamp(1, 64);
+                    for _ in 0..n {
+                        out.extend_from_slice(frame);
+                    }
                 }
             }
         }
