@@ -103,6 +103,9 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
             out.display()
         );
     }
+    // Before the work, as every command's outputs: a folder that is not there, or a device.
+    host_bench::formats::atomic::check_output(&out)
+        .with_context(|| format!("--out {}", out.display()))?;
     let phase = power_on_phase(&a.phase, a.seed)?;
     let edges = generate::EdgeErrors::preset(&a.edges).context("--edges")?;
     let robot = Robot::load(&robot_path)?;
