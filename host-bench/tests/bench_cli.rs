@@ -41,6 +41,11 @@ impl Drop for VirtualBoard {
     }
 }
 
+/// Held by the tests whose figures a busy machine could spoil: a recording (its virtual board
+/// runs in real time, and starved of the CPU it drops edges) and the signal test, which runs
+/// a board and a hundred processes of its own.
+static REAL_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn data(p: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../robots")
@@ -218,6 +223,7 @@ fn another_schema_makes_play_exit_non_zero() {
 
 #[test]
 fn record_writes_a_stream_that_replay_scores() {
+    let _alone = REAL_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let rec = dir.path().join("rec.csv");
     let board = VirtualBoard::start(&[]);
@@ -309,6 +315,7 @@ fn a_patience_out_of_range_is_refused_naming_it() {
 /// `OMNIBENCH_SIGNAL_TRIALS` sets how many (default 10).
 #[test]
 fn record_stopped_by_signals_at_random_moments_leaves_one_whole_set() {
+    let _alone = REAL_TIME.lock().unwrap_or_else(|e| e.into_inner());
     use rand::{Rng, SeedableRng};
     let trials: u32 = std::env::var("OMNIBENCH_SIGNAL_TRIALS")
         .ok()
@@ -386,8 +393,9 @@ fn record_stopped_by_signals_at_random_moments_leaves_one_whole_set() {
         "{trials} trials: previous set kept {kept} times, new set whole {replaced} times; \
          exit codes {statuses:?} (143: SIGTERM ended it, 0: it had finished)"
     );
-    // Both outcomes happen: the signals land before and after the renames.
-    if trials >= 10 {
+    // Both outcomes happen: the signals land before and after the renames (at 10 trials
+    // the split seen, 77 to 23 in 100, leaves one outcome out about one run in 14).
+    if trials >= 30 {
         assert!(kept > 0 && replaced > 0, "kept {kept}, replaced {replaced}");
     }
 }

@@ -319,6 +319,10 @@ impl Staged {
         path: &Path,
         write: impl FnOnce(&mut File) -> anyhow::Result<()>,
     ) -> anyhow::Result<()> {
+        // Twice the same name: the first would be lost without a word.
+        if self.files.iter().any(|(_, _, p)| p == path) {
+            anyhow::bail!("{} is written twice in one run", path.display());
+        }
         let (tmp, listed, ()) = write_temporary(path, write)?;
         self.files.push((tmp, listed, path.to_path_buf()));
         Ok(())
@@ -347,18 +351,31 @@ impl Staged {
         for (tmp, _, path) in files {
             let aside = previous.next().flatten();
             if let Err(e) = rename(tmp, &path) {
-                // Back as they were: the renamed ones get their previous file (or go).
+                // Back as they were: the renamed ones get their previous file (or go). A
+                // previous file that cannot be put back keeps its second name, and says so.
+                let mut stranded = Vec::new();
                 for (path, aside) in renamed.into_iter().rev() {
                     match aside {
                         Some(a) => {
-                            let _ = a.persist(&path);
+                            if let Err(failed) = a.persist(&path) {
+                                if let Ok(kept) = failed.path.keep() {
+                                    stranded.push(format!(
+                                        "the previous {} is kept as {}",
+                                        path.display(),
+                                        kept.display()
+                                    ));
+                                }
+                            }
                         }
                         None => {
                             let _ = std::fs::remove_file(&path);
                         }
                     }
                 }
-                return Err(e);
+                if stranded.is_empty() {
+                    return Err(e);
+                }
+                return Err(e.context(stranded.join("; ")));
             }
             renamed.push((path, aside));
         }
@@ -373,8 +390,10 @@ impl Staged {
 /// A second name (a hard link, `.NAME.XXXXXX.previous`, beside it) for the file at `path`, if
 /// there is one: removed when dropped, renamed back over `path` to restore it.
 fn keep_aside(path: &Path) -> anyhow::Result<Option<tempfile::TempPath>> {
-    if !path.is_file() {
-        return Ok(None);
+    // What is there itself (a symbolic link is kept as a link), if anything but a folder.
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if !m.is_dir() => {}
+        _ => return Ok(None),
     }
     let folder = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -387,7 +406,11 @@ fn keep_aside(path: &Path) -> anyhow::Result<Option<tempfile::TempPath>> {
     let link = tempfile::Builder::new()
         .prefix(&format!(".{name}."))
         .suffix(".previous")
-        .make_in(folder, |aside| std::fs::hard_link(path, aside))
+        // A file system without hard links (FAT on a USB stick), or one the kernel will not
+        // link for this user (protected_hardlinks): a copy does as well for putting it back.
+        .make_in(folder, |aside| {
+            std::fs::hard_link(path, aside).or_else(|_| std::fs::copy(path, aside).map(|_| ()))
+        })
         .with_context(|| format!("cannot keep the previous {} aside", path.display()))?;
     Ok(Some(link.into_temp_path()))
 }
@@ -505,6 +528,16 @@ mod tests {
         staged.commit().unwrap();
         assert_eq!(entries(dir.path()), ["a.csv", "b.csv"]);
         assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b\n");
+    }
+
+    #[test]
+    fn a_name_staged_twice_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.csv");
+        let mut staged = Staged::default();
+        staged.write(&a, |f| Ok(f.write_all(b"1\n")?)).unwrap();
+        let e = staged.write(&a, |f| Ok(f.write_all(b"2\n")?)).unwrap_err();
+        assert!(format!("{e:#}").contains("twice"), "{e:#}");
     }
 
     #[test]

@@ -61,8 +61,9 @@ pub struct RecordOutcome {
     pub switch_back_failed: Option<String>,
 }
 
-/// No new record for this long: the board went silent. A recording slave sends its pose every
-/// [`POSE_EVERY`] updates (50 ms at 1 kHz) even when the robot stands still.
+/// No new record for this long (times `--patience`): the board went silent. A recording slave
+/// sends its pose every [`POSE_EVERY`] updates (50 ms at 1 kHz) even when the robot stands
+/// still; the chip model, at a tenth of real time, takes half a second for that.
 const SILENCE: Duration = Duration::from_secs(1);
 
 /// Latest time stamp a board may send, in microseconds (about 285 years): a larger one is no
@@ -223,14 +224,14 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
                 "the stream reached its size limit (docs/limits.md)",
             ));
         }
-        if last_record.elapsed() > SILENCE {
+        if last_record.elapsed() > link.wait(SILENCE) {
             let why = match link.stats.bytes_received - bytes_at_record {
                 n if n < 64 => "the board went silent".to_string(),
                 n => format!("the board sends ({n} bytes) but no reports"),
             };
             break Err(Early::new(
                 "silence",
-                format!("{why}: no report for {} s", SILENCE.as_secs()),
+                format!("{why}: no report for {} s", link.wait(SILENCE).as_secs()),
             ));
         }
         if let Some(bar) = req.progress {
@@ -296,6 +297,18 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         }
     };
     let seconds = wall.elapsed().as_secs_f64();
+    // Written first, switched back after (whether the write worked or not): switching back
+    // may wait for a board that does not answer, and a user who gives up on that must not
+    // lose the recording.
+    let written = write(
+        req,
+        &robot_text,
+        &robot_name,
+        c,
+        seconds,
+        period_us,
+        &stopped,
+    );
     // A board that went silent or a port that failed will not answer this either.
     let switch_back_failed = match &stopped {
         Err(early) if early.by == "port failure" => Some("not tried: the port failed".to_string()),
@@ -309,15 +322,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         .err()
         .map(|e| format!("{e:#}")),
     };
-    let mut outcome = write(
-        req,
-        &robot_text,
-        &robot_name,
-        c,
-        seconds,
-        period_us,
-        &stopped,
-    )?;
+    let mut outcome = written?;
     outcome.switch_back_failed = switch_back_failed;
     Ok(outcome)
 }
@@ -366,9 +371,9 @@ fn take_reports(
         match postcard::take_from_bytes::<Report>(rest) {
             Ok((r, tail)) => {
                 let at = *offset + (bytes.len() - rest.len()) as u64;
-                if let Err(e) = take_report(r, c, edges) {
+                if let Err((by, e)) = take_report(r, c, edges) {
                     break Err(Early::new(
-                        "bad value",
+                        by,
                         format!("report record at byte {at} of the report stream: {e}"),
                     ));
                 }
@@ -415,10 +420,12 @@ fn take_report(
     r: Report,
     c: &mut Collected,
     edges: &mut EventDecoder,
-) -> std::result::Result<(), String> {
+) -> std::result::Result<(), (&'static str, String)> {
+    let bad = |e: String| ("bad value", e);
     match r {
         Report::Sensors(b) => {
             let mut err = None;
+            let mut undecodable = false;
             edges.feed(b.as_slice(), |e| match e {
                 _ if err.is_some() => {}
                 Ok(Event::Tick {
@@ -450,14 +457,22 @@ fn take_report(
                         Err(e) => err = Some(e),
                     }
                 }
-                Err(e) => err = Some(format!("the slave's sensor events do not decode: {e:?}")),
+                Err(e) => {
+                    undecodable = true;
+                    err = Some(format!("the slave's sensor events do not decode: {e:?}"))
+                }
             });
             if let Some(e) = err {
-                return Err(e);
+                let by = if undecodable {
+                    "undecodable record"
+                } else {
+                    "bad value"
+                };
+                return Err((by, e));
             }
         }
         Report::PoseAt { t_us, pose } => c.board.push((
-            board_ns(t_us, "a board pose's time stamp (PoseAt.t_us)")?,
+            board_ns(t_us, "a board pose's time stamp (PoseAt.t_us)").map_err(bad)?,
             pose,
         )),
         Report::Lost { events, updates } => {
@@ -483,6 +498,13 @@ fn write(
         Err(early) => (early.by.to_string(), Some(early.why.clone())),
     };
     if c.rows.iter().all(|r| matches!(r, Row::Truth { .. })) {
+        if let Err(early) = stopped {
+            bail!(
+                "nothing recorded: the recording ended after {seconds:.1} s, before any encoder \
+                 event reached the host: {}",
+                early.why
+            );
+        }
         bail!(
             "nothing recorded in {seconds:.1} s: no encoder event reached the host (is the \
              slave in a sensor mode that reports? {} truth rows, {} board poses)",

@@ -77,6 +77,12 @@ fn check(info: BoardInfo) -> Result<BoardInfo> {
             ours
         );
     }
+    if !info.slave_seen {
+        bail!(
+            "the master answers but has no valid frame from the slave: check the SPI wiring \
+             (docs/pinmap.md) and that the slave is powered and flashed"
+        );
+    }
     // Checked before any arithmetic with it (the played stream's updates, the recording's
     // clock): a slave image updates at one of the rates it can be built for.
     let rates = firmware_slave::board_rate::BOARD_RATES_HZ;
@@ -89,12 +95,6 @@ fn check(info: BoardInfo) -> Result<BoardInfo> {
              is none of the rates a slave image is built for ({rates:?} Hz): not a board this \
              host-bench can trust",
             info.period_us
-        );
-    }
-    if !info.slave_seen {
-        bail!(
-            "the master answers but has no valid frame from the slave: check the SPI wiring \
-             (docs/pinmap.md) and that the slave is powered and flashed"
         );
     }
     Ok(info)
@@ -263,5 +263,13 @@ mod tests {
                 "{e}"
             );
         }
+        // A master that has not heard from its slave reports period 0: the wiring is named.
+        let e = check(BoardInfo {
+            slave_seen: false,
+            ..info(0)
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("SPI wiring"), "{e}");
     }
 }
