@@ -394,7 +394,7 @@ fn record_stopped_by_signals_at_random_moments_leaves_one_whole_set() {
          exit codes {statuses:?} (143: SIGTERM ended it, 0: it had finished)"
     );
     // Both outcomes happen: the signals land before and after the renames (at 10 trials
-    // the split seen, 77 to 23 in 100, leaves one outcome out about one run in 14).
+    // the split seen, 53 to 47 in 100, would leave one out about one run in 500).
     if trials >= 30 {
         assert!(kept > 0 && replaced > 0, "kept {kept}, replaced {replaced}");
     }
