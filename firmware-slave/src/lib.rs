@@ -17,7 +17,7 @@ mod estimator;
 mod odometry_task;
 pub mod played;
 pub mod ports;
-mod recorder;
+pub mod recorder;
 pub mod robot_wire;
 mod shared;
 

@@ -93,8 +93,15 @@ impl Recorder {
                 self.len += n;
                 self.staged_events += 1;
             }
-            // Out of order or out of range: not representable, counted as lost.
-            Err(_) => self.lost_events = self.lost_events.saturating_add(1),
+            // Out of order or out of range: not representable, counted as lost. The `Lost`
+            // marker it brings is where the host starts decoding from time 0 again, so the
+            // code does too, after what is staged has gone out on the old one.
+            Err(_) => {
+                self.flush(sink);
+                self.lost_events = self.lost_events.saturating_add(1);
+                self.encoder = EventEncoder::new();
+                self.last_abs = None;
+            }
         }
     }
 

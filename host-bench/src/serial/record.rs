@@ -478,6 +478,8 @@ fn take_report(
         Report::Lost { events, updates } => {
             c.lost_events += events as u64;
             c.lost_updates += updates as u64;
+            // The slave's event code starts from time 0 again at the marker.
+            *edges = EventDecoder::new();
         }
         Report::Pose { .. } | Report::BadEvents { .. } => {}
     }
@@ -629,4 +631,82 @@ fn write(
         partial,
         switch_back_failed: None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firmware_slave::recorder::{RecordSink, Recorder};
+
+    /// The report stream, full (taking nothing) while `open` is false.
+    struct Stream {
+        open: bool,
+        records: Vec<Report>,
+    }
+
+    impl RecordSink for Stream {
+        fn put(&mut self, r: &Report) -> bool {
+            if self.open {
+                self.records.push(*r);
+            }
+            self.open
+        }
+    }
+
+    /// The slave's recorder with its stream full for a while, read back as `record` reads it:
+    /// every tick that arrives has the board's own time stamp, and the ones that do not are
+    /// counted. (They did not: the slave starts its event code from time 0 again after a gap,
+    /// and the host kept adding to the time before it, so every tick after the first gap was
+    /// placed later by that much.)
+    #[test]
+    fn ticks_after_a_gap_keep_the_boards_time_stamps() {
+        let mut rec = Recorder::new();
+        let mut stream = Stream {
+            open: true,
+            records: Vec::new(),
+        };
+        let mut made = Vec::new();
+        let mut t = 1_000u64;
+        for update in 0..400u64 {
+            // Full for two stretches: a gap of updates (with their poses), then another.
+            stream.open = !(140..160).contains(&update) && !(250..252).contains(&update);
+            for k in 0..3u64 {
+                t += 40 + (update * 7 + k * 13) % 50;
+                rec.tick(&mut stream, t, (k % 2) as u8, 1);
+                made.push(t);
+            }
+            if update == 300 {
+                // A time stamp before the last: the code cannot carry it, it is counted lost.
+                rec.tick(&mut stream, t - 100, 0, 1);
+                made.push(t - 100);
+            }
+            rec.update(&mut stream, t, protocol::Pose::default(), POSE_EVERY);
+            t += 1;
+        }
+        let mut c = Collected {
+            rows: Vec::new(),
+            board: Vec::new(),
+            ticks: 0,
+            abs: 0,
+            lost_events: 0,
+            lost_updates: 0,
+            truth: 0,
+            has_abs: false,
+        };
+        let mut edges = EventDecoder::new();
+        for r in &stream.records {
+            take_report(*r, &mut c, &mut edges).unwrap();
+        }
+        assert!(c.lost_events > 0 && c.lost_updates > 0, "the gaps happened");
+        let got: Vec<u64> = c.rows.iter().map(|r| r.t_ns() / 1000).collect();
+        assert_eq!(got.len() as u64 + c.lost_events, made.len() as u64);
+        // Each one the board's, in order.
+        let mut made_iter = made.iter();
+        for g in &got {
+            assert!(
+                made_iter.any(|m| m == g),
+                "tick at {g} us is none the board made (after a gap?)"
+            );
+        }
+    }
 }
