@@ -167,10 +167,7 @@ pub fn check_output(path: &Path) -> anyhow::Result<()> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
         Err(e) => anyhow::bail!("cannot write {}: {e}", path.display()),
     }
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let folder = folder_of(path);
     if !folder.is_dir() {
         anyhow::bail!(
             "cannot write {}: its folder {} does not exist",
@@ -250,10 +247,7 @@ fn write_temporary<T>(
     write: impl FnOnce(&mut File) -> anyhow::Result<T>,
 ) -> anyhow::Result<(tempfile::TempPath, Listed, T)> {
     check_output(path)?;
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let folder = folder_of(path);
     let name = path
         .file_name()
         .with_context(|| format!("cannot write {}: not a file name", path.display()))?;
@@ -387,6 +381,14 @@ impl Staged {
     }
 }
 
+/// The folder `path` is in (`.` for a bare name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
 /// A second name (a hard link, `.NAME.XXXXXX.previous`, beside it) for the file at `path`, if
 /// there is one: removed when dropped, renamed back over `path` to restore it.
 fn keep_aside(path: &Path) -> anyhow::Result<Option<tempfile::TempPath>> {
@@ -395,10 +397,7 @@ fn keep_aside(path: &Path) -> anyhow::Result<Option<tempfile::TempPath>> {
         Ok(m) if !m.is_dir() => {}
         _ => return Ok(None),
     }
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let folder = folder_of(path);
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy())
