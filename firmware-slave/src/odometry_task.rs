@@ -10,7 +10,9 @@ use core::mem::MaybeUninit;
 
 use embassy_time::{Duration, Instant, Ticker};
 use postcard::experimental::max_size::MaxSize;
-use protocol::spi::{slave_status, Report, Reports, SensorSource, SlaveCommand, SlaveFrame};
+use protocol::spi::{
+    frame_report, slave_status, Report, Reports, SensorSource, SlaveCommand, SlaveFrame,
+};
 use robot_math::exact::FixedPose;
 use robot_math::odometry::Layout;
 use robot_math::sensors::CounterExtender;
@@ -40,35 +42,34 @@ impl Staged {
             limit: room.min(STAGE),
         }
     }
-    fn put(&mut self, r: &Report) -> bool {
-        if self.len + Report::POSTCARD_MAX_SIZE > self.limit {
-            return false;
-        }
-        match protocol::to_slice(r, &mut self.buf[self.len..self.limit]) {
-            Ok(b) => {
-                self.len += b.len();
-                true
-            }
-            Err(_) => false,
-        }
-    }
     fn bytes(&self) -> &[u8] {
         &self.buf[..self.len]
     }
 }
 
+/// Playing: records back to back. `play` compares every update in order and stops at a record
+/// it cannot read, so framing would cost 2 bytes an update for nothing.
 impl ReportSink for Staged {
     fn has_room(&self) -> bool {
         self.len + Report::POSTCARD_MAX_SIZE <= self.limit
     }
     fn push(&mut self, r: Report) {
-        self.put(&r);
+        if let Ok(b) = protocol::to_slice(&r, &mut self.buf[self.len..self.limit]) {
+            self.len += b.len();
+        }
     }
 }
 
+/// Recording: each record framed, so `record` can pass over one it cannot read and read on.
 impl RecordSink for Staged {
     fn put(&mut self, r: &Report) -> bool {
-        Staged::put(self, r)
+        match frame_report(r, &mut self.buf[self.len..self.limit]) {
+            Some(n) => {
+                self.len += n;
+                true
+            }
+            None => false,
+        }
     }
 }
 

@@ -438,17 +438,14 @@ fn a_slave_reset_stops_a_recording_where_it_happened() {
 
 /// A recording that breaks off keeps what came before and says why, in its header and its
 /// outcome: a board gone silent (noticed within a second, not recorded as silence for as long
-/// as the run lasts), a record that does not decode (before: all later parsing stopped, the
-/// run said nothing and its bytes piled up), a time stamp out of range (before: multiplied
-/// into a wrap to 0 ns, truth rows at t = 0).
+/// as the run lasts), a time stamp out of range (before: multiplied into a wrap to 0 ns,
+/// truth rows at t = 0).
 #[test]
 fn a_recording_that_breaks_off_is_kept_marked_partial_with_the_reason() {
     use host_bench::sim::misbehaving::Misbehaviour;
     let dir = tempfile::tempdir().unwrap();
     let runs: Vec<_> = [
         ("stall@30", "silence", "went silent"),
-        // The bad bytes land between records or inside one's events: either way, no decode.
-        ("bad-record@30", "undecodable record", "decode"),
         ("huge-time@30", "bad value", "SimTruth.t_us"),
     ]
     .into_iter()
@@ -490,6 +487,50 @@ fn a_recording_that_breaks_off_is_kept_marked_partial_with_the_reason() {
             assert!(o.switch_back_failed.is_some(), "{act}: {o:?}");
         }
     }
+}
+
+/// A report record that does not decode is passed over and counted, and the recording reads
+/// on to its end (before: all later parsing stopped, the run said nothing and its bytes piled
+/// up; then: the recording stopped there). The records after it are whole: each is framed,
+/// and each one's event code starts afresh.
+#[test]
+fn a_record_that_does_not_decode_is_passed_over_and_the_recording_reads_on() {
+    use host_bench::sim::misbehaving::Misbehaviour;
+    let dir = tempfile::tempdir().unwrap();
+    let mut opts = virtual_board::Options::default();
+    opts.faults.misbehave = Some(Misbehaviour::parse("bad-record@30").unwrap());
+    let board = Board::start(opts);
+    let out = dir.path().join("rec.csv");
+    let o = record::record(&mut board.link(), &board::recording(&out, None, false)).unwrap();
+    assert_eq!(
+        (o.stopped_by.as_str(), o.partial.as_deref()),
+        ("duration", None),
+        "{o:?}"
+    );
+    // The bad frame's bytes spoil the record they land in and the one they run into; the
+    // sensor records after them, up to the slave's next pose (50 ms), are passed over too.
+    assert!((1..=3).contains(&o.records_undecodable), "{o:?}");
+    assert!(o.records_unplaced < 60, "{o:?}");
+    assert!(o.seconds >= 2.0 && o.ticks > 1000, "{o:?}");
+    let stream = tickstream::read(&out).unwrap();
+    assert!(
+        stream.comments.iter().any(|c| c.starts_with("GAPS:")
+            && c.contains(&format!("passed over: {} that", o.records_undecodable))),
+        "{:?}",
+        stream.comments
+    );
+    // And where it is.
+    assert!(
+        stream
+            .comments
+            .iter()
+            .any(|c| c.starts_with("GAP from") && c.contains("did not decode")),
+        "{:?}",
+        stream.comments
+    );
+    // Time stamps after the gap are the board's, not shifted: in order, within the run.
+    let t: Vec<u64> = stream.events.iter().map(|e| e.t_ns()).collect();
+    assert!(t.windows(2).all(|w| w[0] <= w[1]) && *t.last().unwrap() < 3_000_000_000);
 }
 
 #[test]

@@ -34,7 +34,7 @@ pub use bytes::Bytes;
 pub use units::{metres_to_um, BinaryAngle, Point, Pose};
 
 /// Version of the wire protocol described by this crate. Bumped on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// [`schema_fingerprint`] of this crate, as a constant: what the firmware reports.
 ///

@@ -114,8 +114,13 @@ pub enum Reports {
     Record { pose_every: u16 },
 }
 
-/// One record of the slave's report stream. Records are postcard-encoded back to back; the
-/// stream is delivered in order and complete, so they need no framing of their own.
+/// One record of the slave's report stream, postcard-encoded. While playing ([`Reports::Poses`])
+/// records are back to back: `play` compares every update in order, so it stops at one it
+/// cannot read. While recording ([`Reports::Record`]) each record is COBS-framed
+/// ([`frame_report`]: it ends in the stream's only kind of 0x00 byte), so a reader that finds
+/// one it cannot decode (a bug, or a board that lies: the link's CRC catches line noise) skips
+/// to the next 0x00 and reads on; the event code starts again from time 0 after every
+/// `PoseAt` and at every `Lost`, where the reader places events in time again.
 #[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Report {
@@ -136,6 +141,26 @@ pub enum Report {
 
 /// Largest piece of the event stream in one [`Report::Sensors`].
 pub const REPORT_SENSOR_BYTES: usize = 40;
+
+/// Longest framed record ([`frame_report`]): COBS's overhead and the 0x00 at its end.
+pub const REPORT_FRAME_MAX: usize = cobs::max_encoding_length(Report::POSTCARD_MAX_SIZE) + 1;
+
+/// `r` COBS-framed into the front of `out`, ending in 0x00; the bytes used, or `None` when
+/// `out` is too short.
+pub fn frame_report(r: &Report, out: &mut [u8]) -> Option<usize> {
+    let mut raw = [0u8; Report::POSTCARD_MAX_SIZE];
+    let n = crate::to_slice(r, &mut raw).ok()?.len();
+    let m = cobs::try_encode(&raw[..n], out).ok()?;
+    *out.get_mut(m)? = 0;
+    Some(m + 1)
+}
+
+/// The record in one frame of the report stream (its bytes up to, not with, the 0x00 at its
+/// end; decoded in place), or `None` if it is none.
+pub fn unframe_report(frame: &mut [u8]) -> Option<Report> {
+    let n = cobs::decode_in_place(frame).ok()?;
+    postcard::from_bytes(&frame[..n]).ok()
+}
 
 /// A 32-bit digest of a full-precision pose (Q40 metres x, y and a 64-bit binary-angle
 /// heading, as `robot_math::exact::FixedPose` holds them): CRC-32 over their little-endian

@@ -21,7 +21,7 @@ fn serial_hex<T: serde::Serialize>(msg: &T) -> String {
 #[test]
 fn hello_frame_bytes() {
     // postcard: variant 0, u16 2 as varint -> 00 02; then CRC-32 LE; COBS; delimiter.
-    assert_eq!(PROTOCOL_VERSION, 5, "a new version needs new golden bytes");
+    assert_eq!(PROTOCOL_VERSION, 6, "a new version needs new golden bytes");
     assert_eq!(
         serial_hex(&HostToMaster::Hello {
             protocol_version: PROTOCOL_VERSION
@@ -203,10 +203,10 @@ fn fingerprint_is_pinned() {
     assert_eq!(protocol::SCHEMA_FINGERPRINT, protocol::schema_fingerprint());
 }
 
-const GOLDEN_HELLO: &str = "01060570e6b33100";
+const GOLDEN_HELLO: &str = "010606cab7baa800";
 const GOLDEN_SET_SOURCE: &str = "1407060302ac02d00f9f1f8080808008f6a586b400";
 const GOLDEN_HELLO_REPLY: &str =
-    "010705f8acd191011802010102030405060708090a0b0c01effdb6f50d01e8070880a038da8561d700";
+    "010706f8acd191011802010102030405060708090a0b0c01effdb6f50d01e8070880a0388076e7ba00";
 const GOLDEN_TRACK: &str = "0b0ac0843d9fc21e80ea300e8080808004d7dfbf0103f853e100";
 const GOLDEN_SET_DRIVE: &str =
     "2e0b01e0a712dfa712e0a71280ea3080ea30c03ec03ed00fd00f90039003a8e005c0843d80a4e8038827682bf55c00";

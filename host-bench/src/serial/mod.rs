@@ -9,4 +9,5 @@ pub mod link;
 pub mod play;
 pub mod played_stream;
 pub mod record;
+pub mod reports;
 pub mod session;

@@ -25,6 +25,7 @@ use collect::{board_ns, take_reports, Collected, Early};
 use write::{companion_files, write};
 
 use super::link::Link;
+use super::reports::ReportReader;
 use super::session;
 use crate::formats::tickstream::Event as Row;
 
@@ -56,9 +57,14 @@ pub struct RecordOutcome {
     /// stream has gaps there, reported in its comments.
     pub lost_events: u64,
     pub lost_updates: u64,
+    /// Report records that did not decode, passed over; and the `Sensors` records after
+    /// them that were passed over until the slave's event code started again (at most a
+    /// board pose's interval, 50 updates). The stream's comments say so.
+    pub records_undecodable: u64,
+    pub records_unplaced: u64,
     pub stopped_by: String,
-    /// Why the recording ended before the user stopped it (the board went silent, a record
-    /// did not decode, a value out of range, the slave reset, the port failed), as the
+    /// Why the recording ended before the user stopped it (the board went silent or sent no
+    /// reports, a value out of range, the slave reset, the port failed), as the
     /// stream's header says; `None` when it ran until Ctrl-C or `--duration`.
     pub partial: Option<String>,
     /// The slave could not be switched back to its own sensors afterwards (the recording is
@@ -149,12 +155,11 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         .context("installing the Ctrl-C handler")?;
     let wall = Instant::now();
     let mut rx: GbnReceiver<8192> = GbnReceiver::new();
-    let mut bytes: Vec<u8> = Vec::new();
+    let mut reports = ReportReader::default();
     let mut c = Collected::new(has_abs);
     let mut edges = EventDecoder::new();
     let period_us = info.period_us.max(1) as u64;
-    // Where the report stream is (bytes decoded so far), and when its last record came.
-    let mut stream_offset = 0u64;
+    // When the report stream's last record came.
     let mut last_record = Instant::now();
     let mut bytes_at_record = link.stats.bytes_received;
     // Why it stopped: the user's stop (`Ok`) or an early end (`Err`, the reason).
@@ -205,7 +210,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
                 rx.on_data(&frame);
                 let mut buf = [0u8; 8192];
                 let n = rx.read(&mut buf);
-                bytes.extend_from_slice(&buf[..n]);
+                reports.push(&buf[..n]);
             }
             // The slave started again from power-on: its clock, pose and settings are new,
             // so what comes after does not continue this recording.
@@ -239,7 +244,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
                 ));
             }
         }
-        match take_reports(&mut bytes, &mut stream_offset, &mut c, &mut edges) {
+        match take_reports(&mut reports, &mut c, &mut edges) {
             Ok(0) => {}
             Ok(_) => {
                 last_record = Instant::now();

@@ -138,6 +138,26 @@ pub(super) fn write(
             c.lost_events, c.lost_updates
         ));
     }
+    if c.skipped() > 0 {
+        comments.push(format!(
+            "GAPS: report records passed over: {} that did not decode, and {} sensor \
+             records after them, up to where the slave's event code started again at its next \
+             pose (the counts after a gap are off by what those records held)",
+            c.undecodable, c.unplaced
+        ));
+    }
+    // Each gap where it is, on the stream's clock.
+    let at = |t_ns: u64| format!("{:.6} s", t_ns.saturating_sub(t0) as f64 * 1e-9);
+    for g in &c.gaps {
+        let to = g.to_ns.map_or_else(|| "the end".to_string(), at);
+        comments.push(format!("GAP from {} to {to}: {}", at(g.from_ns), g.what));
+    }
+    if c.gap_count > c.gaps.len() as u64 {
+        comments.push(format!(
+            "GAP: {} more gaps, not listed",
+            c.gap_count - c.gaps.len() as u64
+        ));
+    }
     // What is written (rows before the first truth row, or past the last pose, are not).
     let written = |f: fn(&Row) -> bool| c.rows.iter().filter(|r| f(r)).count() as u64;
     let ticks = written(|r| matches!(r, Row::Tick { .. }));
@@ -181,6 +201,8 @@ pub(super) fn write(
         board_poses: c.board.len() as u64,
         lost_events: c.lost_events,
         lost_updates: c.lost_updates,
+        records_undecodable: c.undecodable,
+        records_unplaced: c.unplaced,
         stopped_by,
         partial,
         switch_back_failed: None,
