@@ -8,6 +8,7 @@
 //! The `host-bench` binary (`src/main.rs`, `src/cli/`) is the command line over these.
 
 pub mod boards;
+pub mod calibrate;
 pub mod eval;
 pub mod formats;
 pub mod serial;

@@ -20,6 +20,8 @@ struct Cli {
     command: Command,
 }
 
+// Parsed once per process: how large one variant is costs nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand)]
 enum Command {
     /// Run both boards' firmware in-process against a simulated robot (no hardware needed)
@@ -29,6 +31,15 @@ enum Command {
         /// built-in seed004-pursuit.
         #[arg(long, value_name = "FILE|NAME", default_value = "seed004-pursuit")]
         scenario: String,
+        /// The robot file the boards are given instead of the scenario's: its encoders go to
+        /// the slave, its drive to the master (with the scenario's controller gains).
+        #[arg(long, value_name = "FILE")]
+        robot: Option<PathBuf>,
+        /// The robot as it really is, when it is not as the boards are told: the simulated
+        /// wheels, encoders and carriage follow this file, so the run shows what wrong
+        /// geometry does (`calibrate` finds it). The same kind of robot as the boards'.
+        #[arg(long, value_name = "FILE")]
+        true_robot: Option<PathBuf>,
         /// Simulated seconds to run [default: the scenario's own duration, 12 s for seed004-pursuit].
         #[arg(long, allow_negative_numbers = true)]
         duration: Option<f64>,
@@ -197,6 +208,9 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// How far a robot's geometry is off its robot file, from runs whose true end pose is
+    /// known (UMBmark's squares), and the robot file corrected (docs/calibration.md).
+    Calibrate(cli::calibrate::CalibrateArgs),
     /// List the attached debug probes and serial ports (docs/bench.md).
     Probes {
         /// Print {"probes":[{name, vid, pid, serial, selector, accessible}],
@@ -274,6 +288,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Emulate {
             scenario,
+            robot,
+            true_robot,
             duration,
             seed,
             algorithm,
@@ -297,7 +313,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             fault_serial_delay,
             fault_serial_torn,
         } => {
-            let scenario = match Scenario::builtin(&scenario) {
+            let mut scenario = match Scenario::builtin(&scenario) {
                 Some(s) => s,
                 None if !std::path::Path::new(&scenario).exists() => anyhow::bail!(
                     "--scenario {scenario}: no such file, and no built-in of that name (the \
@@ -306,6 +322,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 ),
                 None => host_bench::formats::scenario::load(std::path::Path::new(&scenario))?,
             };
+            if let Some(path) = &robot {
+                scenario.set_robot(path)?;
+            }
+            if let Some(path) = &true_robot {
+                scenario.set_true_robot(path)?;
+            }
             let mut opts = emulator::Options::new(&scenario);
             if let Some(d) = duration {
                 opts.duration = d;
@@ -406,6 +428,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             counts_rate,
             json,
         } => cli::analyse::run_replay(robot, ticks, algorithm, counts_rate, out, json),
+        Command::Calibrate(a) => cli::calibrate::run_calibrate(a),
         Command::Probes { json } => cli::flash::run_probes(json),
         Command::InitBench { out, force } => cli::flash::run_init_bench(out, force),
         Command::Flash(a) => cli::flash::run_flash(a),

@@ -50,6 +50,7 @@ fn every_robot_file_loads_and_is_named_after_its_file() {
             "seed000-0.8mm",
             "seed001",
             "seed002",
+            "seed002-as-built",
             "seed003",
             "seed004",
             "skewed3"

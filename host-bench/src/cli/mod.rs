@@ -2,6 +2,7 @@
 //! (`main.rs` holds the rest).
 
 pub mod analyse;
+pub mod calibrate;
 pub mod envelope;
 pub mod flash;
 pub mod generate;

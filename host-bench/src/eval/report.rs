@@ -27,7 +27,7 @@ pub fn summary_text(s: &Summary) -> String {
         _ => String::new(),
     };
     let text = format!(
-        "scenario        {scenario} (seed {seed}), robot {robot}{uploaded}, slave odometry `{algorithm}`\n\
+        "scenario        {scenario} (seed {seed}), robot {robot}{uploaded}{truly}, slave odometry `{algorithm}`\n\
          simulated       {sim:.3} s in {wall:.3} s wall ({speed:.0}x real time)\n\
          path length     {path:.3} m\n\
          slave odometry  final error {fe:.2} mm, max {me:.2} mm, final heading error {he:.3} deg\n\
@@ -40,6 +40,9 @@ pub fn summary_text(s: &Summary) -> String {
         robot = s.robot,
         uploaded = s.robot_uploaded.map_or(String::new(), |fp| format!(
             " (encoders uploaded to the slave, fingerprint {fp:08x})"
+        )),
+        truly = s.true_robot.as_ref().map_or(String::new(), |t| format!(
+            "; the simulated robot is really {t}"
         )),
         algorithm = s.algorithm,
         seed = s.seed,
@@ -212,10 +215,7 @@ pub fn emulate_into(
         dir.join("path.svg"),
         dir.join("summary.json"),
     );
-    let what = ["the scenario file", "the scenario's robot file"];
-    let inputs: Vec<(&str, &Path)> = what
-        .iter()
-        .zip(&scenario.source_files)
+    let inputs: Vec<(&str, &Path)> = (scenario.source_files.iter())
         .map(|(w, p)| (*w, p.as_path()))
         .collect();
     crate::formats::atomic::refuse_inputs(

@@ -8,14 +8,14 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context as _, Result};
 use robot_math::motor::DcMotor;
 use serde::Deserialize;
 use toml::Spanned;
 
 use super::robot::Robot;
 use super::toml_file::{read_text, FileError, Res, Shape, TomlFile};
-use crate::sim::emulator::{Faults, Motion, Scenario, MAX_DURATION_S, POWER_ON_ROBOT};
+use crate::sim::emulator::{Faults, Motion, RobotModel, Scenario, MAX_DURATION_S, POWER_ON_ROBOT};
 
 /// How far from the field origin a start or target may lie, metres: the slave reports its
 /// pose in micrometres in an `i32` (±2147 m), and a run must stay inside that.
@@ -38,6 +38,8 @@ struct RawScenario {
     description: String,
     /// Relative to the scenario file's folder.
     robot: Option<Spanned<String>>,
+    /// The robot as it really is, when it is not as `robot` says (relative, as `robot`).
+    true_robot: Option<Spanned<String>>,
     duration_s: Spanned<f64>,
     start: RawStart,
     target: Option<Spanned<RawTarget>>,
@@ -157,23 +159,29 @@ impl TomlFile<'_> {
         let duration = self.within(&raw.duration_s, "duration_s", 0.1, MAX_DURATION_S, "s")?;
         // The robot's drive (for the master) and sensors (for the slave); without a robot
         // file, the boards' power-on robot.
-        let (robot, mut drive, layout, motor) = match &raw.robot {
+        let told = match &raw.robot {
             Some(r) => {
-                let robot = self.robot(r)?;
                 let here = |e: anyhow::Error| anyhow!(self.at(r.span(), "robot", e.to_string()));
-                let drive = robot.drive_geometry().map_err(here)?;
-                let layout = robot.odometry_layout().map_err(here)?;
-                // drive_geometry() has checked the motor is there.
-                let motor = robot.motor.map(|m| m.model).unwrap_or(DcMotor::SEED_004);
-                (robot.name, drive, layout, motor)
+                robot_model(self.robot(r)?).map_err(here)?
             }
-            None => (
-                POWER_ON_ROBOT.to_string(),
-                firmware_master::drive_setup::SEED_004_DRIVE,
-                robot_math::odometry::Layout::SEED_004,
-                DcMotor::SEED_004,
-            ),
+            None => power_on_robot(),
         };
+        let true_robot = match &raw.true_robot {
+            Some(r) => {
+                let here =
+                    |e: anyhow::Error| anyhow!(self.at(r.span(), "true_robot", e.to_string()));
+                let truly = robot_model(self.robot(r)?).map_err(here)?;
+                same_kind(&told, &truly).map_err(here)?;
+                Some(truly)
+            }
+            None => None,
+        };
+        let RobotModel {
+            name: robot,
+            mut drive,
+            layout,
+            motor,
+        } = told;
         let has_carriage = layout.carriage_geometry().is_some();
 
         let s = &raw.start;
@@ -199,7 +207,7 @@ impl TomlFile<'_> {
             (None, false) => 0.0,
         };
 
-        let motion = match (&raw.target, &raw.trajectory) {
+        let mut motion = match (&raw.target, &raw.trajectory) {
             (Some(t), None) => self.target(t.get_ref())?,
             (None, Some(t)) => self.trajectory(t.get_ref())?,
             (Some(_), Some(t)) => {
@@ -218,6 +226,21 @@ impl TomlFile<'_> {
                 )))
             }
         };
+        // A body's path (UMBmark's squares) is sent as the path of the point the master
+        // tracks: seed 002's A, ahead of the axle, which its turns in place swing round.
+        if let (
+            Motion::Track {
+                trajectory: name,
+                ahead_m,
+                ..
+            },
+            protocol::serial::DriveKind::OffsetDiff { offset_um, .. },
+        ) = (&mut motion, drive.kind)
+        {
+            if trajectory::is_body_path(name) {
+                *ahead_m = offset_um as f64 * 1e-6;
+            }
+        }
 
         let mut pursuit_period_s = None;
         if let Some(c) = &raw.controller {
@@ -415,9 +438,16 @@ impl TomlFile<'_> {
             encoder_phase,
             encoder_edges,
             faults,
-            source_files: std::iter::once(self.path.to_path_buf())
-                .chain(raw.robot.as_ref().map(|r| self.robot_path(r)))
+            source_files: std::iter::once(("the scenario file", self.path.to_path_buf()))
+                .chain(
+                    (raw.robot.as_ref()).map(|r| ("the scenario's robot file", self.robot_path(r))),
+                )
+                .chain(
+                    (raw.true_robot.as_ref())
+                        .map(|r| ("the scenario's true robot file", self.robot_path(r))),
+                )
                 .collect(),
+            true_robot,
         })
     }
 
@@ -582,6 +612,127 @@ impl TomlFile<'_> {
         Ok(Motion::Track {
             trajectory: name,
             sample_period_s,
+            ahead_m: 0.0,
         })
+    }
+}
+
+/// A robot file as a run uses it: its drive for the master, its measuring sensors for the
+/// slave, its motors.
+pub fn robot_model(robot: Robot) -> Result<RobotModel> {
+    let drive = robot.drive_geometry()?;
+    let layout = robot.odometry_layout()?;
+    // drive_geometry() has checked the motor is there.
+    let motor = robot.motor.map(|m| m.model).unwrap_or(DcMotor::SEED_004);
+    Ok(RobotModel {
+        name: robot.name,
+        drive,
+        layout,
+        motor,
+    })
+}
+
+/// The boards' power-on robot, seed 004's.
+fn power_on_robot() -> RobotModel {
+    RobotModel {
+        name: POWER_ON_ROBOT.to_string(),
+        drive: firmware_master::drive_setup::SEED_004_DRIVE,
+        layout: robot_math::odometry::Layout::SEED_004,
+        motor: DcMotor::SEED_004,
+    }
+}
+
+/// A robot as it really is must be the kind of robot the boards are told it is: the same
+/// drive, the same number of encoders, a carriage on both or on neither. Its numbers may
+/// differ as much as they like.
+fn same_kind(told: &RobotModel, truly: &RobotModel) -> Result<()> {
+    use protocol::serial::DriveKind;
+    let drive = |d: &DriveKind| match d {
+        DriveKind::Omni3 { .. } => "three omni wheels",
+        DriveKind::OffsetDiff { .. } => "a differential drive",
+    };
+    let (a, b) = (drive(&told.drive.kind), drive(&truly.drive.kind));
+    if a != b {
+        return Err(anyhow!("it has {b}, the robot the boards are told of {a}"));
+    }
+    let encoders = |l: &robot_math::odometry::Layout| l.encoders();
+    if encoders(&told.layout) != encoders(&truly.layout) {
+        return Err(anyhow!(
+            "it has {} measuring encoders, the robot the boards are told of {}",
+            encoders(&truly.layout),
+            encoders(&told.layout)
+        ));
+    }
+    let carriage = |l: &robot_math::odometry::Layout| l.carriage_geometry().is_some();
+    if carriage(&told.layout) != carriage(&truly.layout) {
+        let has = |c: bool| {
+            if c {
+                "a swivel carriage"
+            } else {
+                "no carriage"
+            }
+        };
+        return Err(anyhow!(
+            "it has {}, the robot the boards are told of {}",
+            has(carriage(&truly.layout)),
+            has(carriage(&told.layout))
+        ));
+    }
+    Ok(())
+}
+
+impl Scenario {
+    /// Give the boards the robot in `path` instead of the scenario's (its encoders to the
+    /// slave, its drive to the master, with the scenario's controller gains).
+    pub fn set_robot(&mut self, path: &Path) -> Result<()> {
+        let what = || format!("--robot {}", path.display());
+        let robot = Robot::load(path).map_err(|e| anyhow!("{}: {e}", what()))?;
+        let mut told = robot_model(robot).with_context(what)?;
+        let gains = self.drive;
+        let d = &mut told.drive;
+        d.k_forward_milli = gains.k_forward_milli;
+        d.k_lateral_milli = gains.k_lateral_milli;
+        d.ff_forward_milli = gains.ff_forward_milli;
+        d.ff_lateral_milli = gains.ff_lateral_milli;
+        d.diff_forward_milli = gains.diff_forward_milli;
+        d.diff_lateral_milli = gains.diff_lateral_milli;
+        d.speed_kp_micro = gains.speed_kp_micro;
+        d.speed_ki_micro = gains.speed_ki_micro;
+        d.speed_kd_micro = gains.speed_kd_micro;
+        if firmware_master::drive_setup::DriveSetup::from_geometry(d).is_none() {
+            return Err(anyhow!(
+                "{}: the master cannot drive this robot (its drive geometry is impossible)",
+                what()
+            ));
+        }
+        if let Some(truly) = &self.true_robot {
+            same_kind(&told, truly).with_context(|| format!("the true robot {}", truly.name))?;
+        }
+        self.robot = told.name;
+        self.drive = told.drive;
+        self.layout = told.layout;
+        self.motor = told.motor;
+        self.source_files
+            .push(("the --robot file", path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Make the simulated robot the one in `path` (its wheels, encoders, carriage and motors),
+    /// while the boards are still told of the scenario's.
+    pub fn set_true_robot(&mut self, path: &Path) -> Result<()> {
+        let what = || format!("--true-robot {}", path.display());
+        let robot = Robot::load(path).map_err(|e| anyhow!("{}: {e}", what()))?;
+        let truly = robot_model(robot).with_context(what)?;
+        let told = RobotModel {
+            name: self.robot.clone(),
+            drive: self.drive,
+            layout: self.layout,
+            motor: self.motor,
+        };
+        same_kind(&told, &truly).with_context(what)?;
+        self.true_robot = Some(truly);
+        self.source_files
+            .push(("the --true-robot file", path.to_path_buf()));
+        Ok(())
     }
 }

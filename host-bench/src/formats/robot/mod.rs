@@ -20,9 +20,11 @@ use serde::Deserialize;
 
 pub use super::toml_file::FileError;
 use super::toml_file::{read_text, Res, Shape, TomlFile};
+pub use edit::EncoderGeometry;
 use raw::RawRobot;
 
 mod check;
+mod edit;
 mod raw;
 #[cfg(test)]
 mod tests;

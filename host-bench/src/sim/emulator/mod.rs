@@ -79,11 +79,28 @@ pub struct Scenario {
     /// The files it was read from (the scenario file, the robot file it names): what a run's
     /// outputs must not write over. Empty for a built-in.
     #[serde(skip)]
-    pub source_files: Vec<std::path::PathBuf>,
+    pub source_files: Vec<(&'static str, std::path::PathBuf)>,
     /// Where the measuring encoders put their edges (ideal, or a datasheet's errors).
     #[serde(skip)]
     pub encoder_edges: crate::sim::generate::EdgeErrors,
     pub faults: Faults,
+    /// The robot as it really is, when it is not as the boards are told (`--true-robot`,
+    /// the scenario's `true_robot`): the simulated wheels, encoders and carriage follow it,
+    /// while the slave gets `layout` and the master `drive`. None: as the boards are told.
+    #[serde(skip)]
+    pub true_robot: Option<RobotModel>,
+}
+
+/// A robot file as a run uses it.
+#[derive(Clone, Debug)]
+pub struct RobotModel {
+    pub name: String,
+    /// Its drive (the master's, with the robot file's own controller gains).
+    pub drive: DriveGeometry,
+    /// Its measuring sensors (the slave's).
+    pub layout: Layout,
+    /// Its drive motors.
+    pub motor: DcMotor,
 }
 
 /// What the host asks of the robot.
@@ -103,6 +120,10 @@ pub enum Motion {
     Track {
         trajectory: String,
         sample_period_s: f64,
+        /// How far ahead of the body's reference point the tracked point is, when the
+        /// trajectory is the body's (UMBmark's squares, whose corners are turns in place):
+        /// the master is sent that point's path. 0: the trajectory is the tracked point's own.
+        ahead_m: f64,
     },
 }
 
@@ -137,6 +158,7 @@ impl Scenario {
             encoder_edges: crate::sim::generate::EdgeErrors::IDEAL,
             faults: Faults::default(),
             source_files: Vec::new(),
+            true_robot: None,
         }
     }
 
@@ -184,18 +206,20 @@ pub fn run_logged(
     check_options(opts)?;
     let wall = WallInstant::now();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
-    let sensors = MeasuringSensors::from_layout(&opts.robot_layout)
+    // The simulated robot: as the boards are told, or as it really is.
+    let truly = scenario.true_robot.as_ref();
+    let sensors = MeasuringSensors::from_layout(truly.map_or(&opts.robot_layout, |t| &t.layout))
         .map_err(|e| anyhow::anyhow!("the robot's encoders cannot be emulated: {e}"))?;
     // One slave image serves every robot: the host uploads this run's, unless the slave
     // powered on with it.
     let fingerprint = firmware_slave::robot_wire::layout_fingerprint;
     let upload = (fingerprint(&opts.robot_layout) != fingerprint(opts.slave.layout()))
         .then_some(opts.robot_layout);
-    let drive = DriveSetup::from_geometry(&scenario.drive)
+    let drive = DriveSetup::from_geometry(truly.map_or(&scenario.drive, |t| &t.drive))
         .context("the scenario's drive geometry is impossible")?;
     let plant_cfg = PlantConfig {
         drive: drive.kinematics,
-        motor: scenario.motor,
+        motor: truly.map_or(scenario.motor, |t| t.motor),
         motor_metres_per_count: drive.metres_per_motor_count,
         sensors,
     };
@@ -223,6 +247,7 @@ pub fn run_logged(
             EdgeMap::draw(&opts.edges, opts.seed, j, per_count[j])
         }));
     }
+    let counts_at_start = plant.encoder_counts();
     let plant: SharedPlant = Rc::new(RefCell::new(plant));
 
     let slave_shared = SlaveShared::new();
@@ -463,6 +488,8 @@ pub fn run_logged(
     let summary = Summary {
         scenario: scenario.name.clone(),
         robot: scenario.robot.clone(),
+        robot_fingerprint: fingerprint(&opts.robot_layout),
+        true_robot: scenario.true_robot.as_ref().map(|t| t.name.clone()),
         algorithm: format!("{:?}", slave_frame.algorithm).to_lowercase(),
         seed: opts.seed,
         encoder_phase,
@@ -477,6 +504,12 @@ pub fn run_logged(
         final_estimate_m: (slave.x, slave.y),
         final_estimate_heading_rad: slave.theta,
         final_position_m: (truth.x, truth.y),
+        final_heading_rad: truth.theta,
+        start_pose: scenario.start,
+        measuring_counts: {
+            let end = plant.encoder_counts();
+            [end[0] - counts_at_start[0], end[1] - counts_at_start[1]]
+        },
         distance_to_goal_m: distance_to_goal,
         tracking_rms_m: (tracking_error.3 > 0.0)
             .then(|| (tracking_error.0 / tracking_error.3).sqrt()),

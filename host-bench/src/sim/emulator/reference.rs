@@ -37,10 +37,18 @@ impl ReferencePath {
                 t0: 0.0,
             }),
             Motion::Track {
-                trajectory: name, ..
-            } => ReferencePath::Path(
-                trajectory::build(name).ok_or_else(|| anyhow!("no trajectory \"{name}\""))?,
-            ),
+                trajectory: name,
+                ahead_m,
+                ..
+            } => {
+                let path =
+                    trajectory::build(name).ok_or_else(|| anyhow!("no trajectory \"{name}\""))?;
+                ReferencePath::Path(if *ahead_m != 0.0 {
+                    Box::new(trajectory::AheadOf::new(path, *ahead_m))
+                } else {
+                    path
+                })
+            }
         })
     }
 

@@ -34,6 +34,12 @@ pub struct LogRow {
 pub struct Summary {
     pub scenario: String,
     pub robot: String,
+    /// The fingerprint of the encoders the slave was told of (`robot_wire::layout_fingerprint`):
+    /// which robot its odometry ran on.
+    pub robot_fingerprint: u32,
+    /// The simulated robot's name when it is not the one the boards are told of
+    /// (`--true-robot`).
+    pub true_robot: Option<String>,
     /// The slave's odometry algorithm (as the slave reports it).
     pub algorithm: String,
     pub seed: u64,
@@ -63,6 +69,14 @@ pub struct Summary {
     pub final_estimate_heading_rad: f64,
     /// Where the robot really ended, and how far its tracked point is from the goal.
     pub final_position_m: (f64, f64),
+    /// Its true heading at the end, radians.
+    pub final_heading_rad: f64,
+    /// Where it started (x m, y m, heading rad): the pose the host set the slave's odometry
+    /// to.
+    pub start_pose: (f64, f64, f64),
+    /// Each measuring encoder's count change over the run: what the slave read. With the
+    /// start and end poses, what `calibrate` takes from a run.
+    pub measuring_counts: [i64; 2],
     pub distance_to_goal_m: f64,
     /// Seed 002's tracking error: the true tracked point against the reference path at the
     /// same instant, at every physics step (≤ 0.1 ms) from a second after the path started to

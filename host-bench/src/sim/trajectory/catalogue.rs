@@ -147,6 +147,14 @@ pub fn named(name: &str) -> Option<Named> {
 }
 
 /// Builds the trajectory called `name` (see [`catalogue`]).
+/// Whether the trajectory is the body's own path, not one for a tracked point ahead of it:
+/// UMBmark's squares, whose corners are turns in place of the body (Borenstein's procedure
+/// is defined by what the wheels do), so a robot that tracks a point ahead of its axle is
+/// sent that point's path round them ([`super::AheadOf`]).
+pub fn is_body_path(name: &str) -> bool {
+    matches!(name, "umbmark-cw" | "umbmark-ccw")
+}
+
 pub fn build(name: &str) -> Option<Box<dyn Trajectory>> {
     let holonomic_fixed = Heading::Progress {
         start: 0.0,

@@ -64,7 +64,7 @@ use std::f64::consts::FRAC_PI_2;
 
 use robot_math::se2::{Pose2, Twist};
 
-pub use catalogue::{build, catalogue, named};
+pub use catalogue::{build, catalogue, is_body_path, named};
 
 mod catalogue;
 mod motion;
@@ -95,6 +95,44 @@ pub trait Trajectory {
     /// Default: none.
     fn breakpoints(&self) -> Vec<f64> {
         Vec::new()
+    }
+}
+
+/// The point `ahead` along the body's +x from a body trajectory's reference point (seed 002's
+/// A, which the master tracks): the body's heading, that point's position and velocity.
+pub struct AheadOf {
+    body: Box<dyn Trajectory>,
+    ahead: f64,
+}
+
+impl AheadOf {
+    pub fn new(body: Box<dyn Trajectory>, ahead: f64) -> Self {
+        AheadOf { body, ahead }
+    }
+
+    fn moved(&self, t: Twist) -> Twist {
+        // v_A = v_O + ω × (l, 0) in the body frame.
+        Twist::new(t.vx, t.vy + t.omega * self.ahead, t.omega)
+    }
+}
+
+impl Trajectory for AheadOf {
+    fn duration(&self) -> f64 {
+        self.body.duration()
+    }
+    fn pose(&self, t: f64) -> Pose2 {
+        let p = self.body.pose(t);
+        let (s, c) = p.theta.sin_cos();
+        Pose2::new(p.x + self.ahead * c, p.y + self.ahead * s, p.theta)
+    }
+    fn twist(&self, t: f64) -> Twist {
+        self.moved(self.body.twist(t))
+    }
+    fn twist_before(&self, t: f64) -> Twist {
+        self.moved(self.body.twist_before(t))
+    }
+    fn breakpoints(&self) -> Vec<f64> {
+        self.body.breakpoints()
     }
 }
 

@@ -1,0 +1,174 @@
+//! `host-bench calibrate`: how far a robot's geometry is off its robot file, from runs whose
+//! true end pose is known, and the robot file corrected.
+//!
+//! `umbmark` ([`umbmark`]) is Borenstein and Feng's procedure for two parallel measuring
+//! wheels. The runs ([`runs`]) are tick streams replayed on the nominal robot, or emulated runs
+//! whose slave ran it.
+
+pub mod runs;
+pub mod umbmark;
+
+use anyhow::{bail, Result};
+use serde::Serialize;
+
+use crate::formats::robot::{EncoderGeometry, Robot};
+use runs::RunEnd;
+use umbmark::{Direction, SquareRun, Umbmark};
+
+/// The two parallel measuring wheels UMBmark is about: which encoder is on the left of their
+/// rolling direction, which on the right, and how far apart they are across it.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct WheelPair {
+    pub left: usize,
+    pub right: usize,
+    pub base_m: f64,
+}
+
+/// The robot's two measuring wheels, if they are a UMBmark pair.
+pub fn wheel_pair(robot: &Robot) -> Result<WheelPair> {
+    let [a, b] = robot.encoders.as_slice() else {
+        bail!(
+            "robot {}: UMBmark is for two measuring wheels; this robot has {} encoders",
+            robot.name,
+            robot.encoders.len()
+        );
+    };
+    if robot.carriage.is_some() {
+        bail!(
+            "robot {}: its wheels are on a swivel carriage, whose squares UMBmark does not \
+             model (the carriage turns behind the body at each corner)",
+            robot.name
+        );
+    }
+    let (wa, wb) = (a.wheel, b.wheel);
+    if (wa.ux * wb.uy - wa.uy * wb.ux).abs() > 1e-9 || wa.ux * wb.ux + wa.uy * wb.uy < 0.0 {
+        bail!(
+            "robot {}: UMBmark takes two wheels rolling the same way; {} and {} do not",
+            robot.name,
+            a.name,
+            b.name
+        );
+    }
+    // Across the rolling direction, to its left.
+    let lateral = |w: robot_math::wheel::Wheel| -w.x * wa.uy + w.y * wa.ux;
+    let (la, lb) = (lateral(wa), lateral(wb));
+    let (left, right) = if la > lb { (0, 1) } else { (1, 0) };
+    Ok(WheelPair {
+        left,
+        right,
+        base_m: (la - lb).abs(),
+    })
+}
+
+/// The encoders as a robot file gives them.
+pub fn geometry(robot: &Robot) -> Vec<EncoderGeometry> {
+    (robot.encoders.iter())
+        .map(|e| EncoderGeometry {
+            x_m: e.wheel.x,
+            y_m: e.wheel.y,
+            direction_deg: e.wheel.uy.atan2(e.wheel.ux).to_degrees(),
+            metres_per_count: e.metres_per_count,
+        })
+        .collect()
+}
+
+/// One run as UMBmark reads it: which way round, its side, its return error, from the
+/// counts on the nominal robot. A run that is not one square driven forward once round is
+/// refused, and a wheel counting backwards is named.
+pub fn square_run(robot: &Robot, pair: WheelPair, run: &RunEnd) -> Result<SquareRun> {
+    let (k, n) = (
+        |i: usize| robot.encoders[i].metres_per_count,
+        |i: usize| run.counts[i],
+    );
+    let name = |i: usize| &robot.encoders[i].name;
+    let (l, r) = (pair.left, pair.right);
+    // A square's legs roll both wheels forward: the turns in place cancel out.
+    for (i, other) in [(l, r), (r, l)] {
+        if n(i) < 0 && n(other) > 0 {
+            bail!(
+                "{}: encoder {} counted backwards ({} counts while {} counted {}): a square \
+                 run rolls both wheels forward, so it is wired or signed the wrong way \
+                 (swap its A and B lines, or turn its direction_deg by 180 in the robot file); \
+                 no fit is made with a wheel that counts backwards",
+                run.name,
+                name(i),
+                n(i),
+                name(other),
+                n(other)
+            );
+        }
+    }
+    let travel = (k(l) * n(l) as f64 + k(r) * n(r) as f64) / 2.0;
+    let turned = (k(r) * n(r) as f64 - k(l) * n(l) as f64) / pair.base_m;
+    let turns = turned / std::f64::consts::TAU;
+    if !(0.8..1.2).contains(&turns.abs()) || travel <= 0.0 {
+        bail!(
+            "{}: the odometry turned {:.0} deg over {:.3} m: a UMBmark run is one square, \
+             driven forward once round (360 deg either way)",
+            run.name,
+            turned.to_degrees(),
+            travel
+        );
+    }
+    Ok(SquareRun {
+        name: run.name.clone(),
+        direction: if turned < 0.0 {
+            Direction::Clockwise
+        } else {
+            Direction::CounterClockwise
+        },
+        side_m: travel / 4.0,
+        error_m: run.error_in_start_frame(),
+        // Steered by the odometry: it came back, the robot did not (else the other way).
+        driven_by_odometry: run.odometry_end.distance_to(run.start)
+            < run.measured_end.distance_to(run.start),
+    })
+}
+
+/// What a UMBmark calibration found and made.
+#[derive(Clone, Debug, Serialize)]
+pub struct UmbmarkCalibration {
+    pub robot: String,
+    pub method: &'static str,
+    pub pair: WheelPair,
+    pub umbmark: Umbmark,
+    pub runs: Vec<SquareRun>,
+    pub before: Vec<EncoderGeometry>,
+    pub after: Vec<EncoderGeometry>,
+}
+
+/// UMBmark on `runs` of `robot`, and its encoders corrected.
+pub fn calibrate_umbmark(robot: &Robot, runs: &[RunEnd]) -> Result<UmbmarkCalibration> {
+    let pair = wheel_pair(robot)?;
+    let squares = (runs.iter())
+        .map(|r| square_run(robot, pair, r))
+        .collect::<Result<Vec<_>>>()?;
+    let u = umbmark::umbmark(&squares, pair.base_m)?;
+    let before = geometry(robot);
+    let mut after = before.clone();
+    let (left, right, base) = umbmark::corrected(
+        &u,
+        before[pair.left].metres_per_count,
+        before[pair.right].metres_per_count,
+        pair.base_m,
+    );
+    after[pair.left].metres_per_count = left;
+    after[pair.right].metres_per_count = right;
+    // The base widened about its middle, across the rolling direction.
+    let w = robot.encoders[pair.left].wheel;
+    let (nx, ny) = (-w.uy, w.ux);
+    let grow = (base - pair.base_m) / 2.0;
+    for (i, sign) in [(pair.left, 1.0), (pair.right, -1.0)] {
+        after[i].x_m += sign * grow * nx;
+        after[i].y_m += sign * grow * ny;
+    }
+    Ok(UmbmarkCalibration {
+        robot: robot.name.clone(),
+        method: "umbmark",
+        pair,
+        umbmark: u,
+        runs: squares,
+        before,
+        after,
+    })
+}

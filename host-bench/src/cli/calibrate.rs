@@ -1,0 +1,191 @@
+//! `host-bench calibrate`: a robot's geometry errors from runs, and its robot file corrected.
+
+use std::io::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use host_bench::calibrate::runs::{self, RunEnd};
+use host_bench::calibrate::{self, umbmark};
+use host_bench::formats::robot::Robot;
+use serde::Serialize;
+
+#[derive(Args)]
+pub struct CalibrateArgs {
+    /// The robot file the runs were driven with (its nominal geometry).
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// The runs: tick streams (their end pose the last truth row, or --measured), or what
+    /// `emulate --json` printed (one run, or a --sweep's runs).
+    #[arg(long, value_name = "FILE", num_args = 1.., required = true)]
+    pub runs: Vec<PathBuf>,
+    /// `umbmark`: Borenstein's UMBmark, for two parallel measuring wheels, from squares
+    /// driven both ways (docs/calibration.md).
+    #[arg(long, default_value = "umbmark", value_parser = ["umbmark"])]
+    pub method: String,
+    /// End poses measured by hand, `run,x_m,y_m,heading_deg` (run: the file as given to
+    /// --runs, or its name), in the frame the run started in (origin, facing +x) for a stream
+    /// with no truth rows, else in its truth's frame.
+    #[arg(long, value_name = "FILE")]
+    pub measured: Option<PathBuf>,
+    /// Write the corrected robot file here: the nominal file with its encoders' numbers
+    /// replaced, every comment kept, whole or not at all.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Print the whole calibration as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The calibration and what it does to the runs it came from.
+#[derive(Serialize)]
+struct Report {
+    #[serde(flatten)]
+    calibration: calibrate::UmbmarkCalibration,
+    /// The tick-stream runs replayed on the corrected robot: each one's return error, and
+    /// UMBmark's E_max,syst over them (none for emulated runs: drive those again).
+    runs_after: Vec<umbmark::SquareRun>,
+    e_max_syst_after_m: Option<f64>,
+    out: Option<String>,
+}
+
+pub fn run_calibrate(a: CalibrateArgs) -> Result<()> {
+    // Every output checked before any work.
+    if let Some(out) = &a.out {
+        host_bench::formats::atomic::check_output(out).context("--out")?;
+        let mut inputs = vec![("the robot file", a.robot.as_path())];
+        inputs.extend(a.runs.iter().map(|r| ("a run", r.as_path())));
+        inputs.extend(a.measured.as_deref().map(|m| ("the measured poses", m)));
+        host_bench::formats::atomic::refuse_inputs("--out", std::slice::from_ref(out), &inputs)?;
+    }
+    let text = std::fs::read_to_string(&a.robot)
+        .with_context(|| format!("--robot {}", a.robot.display()))?;
+    let robot = Robot::parse(&text, &a.robot)?;
+    let measured = match &a.measured {
+        Some(m) => runs::read_measured(m)?,
+        None => Default::default(),
+    };
+    let mut all: Vec<RunEnd> = Vec::new();
+    for path in &a.runs {
+        all.extend(runs::read_runs(path, &robot, &measured)?);
+    }
+    let c = calibrate::calibrate_umbmark(&robot, &all)?;
+    let u = &c.umbmark;
+    let note = [
+        format!(
+            "Calibrated by host-bench calibrate (UMBmark) from {}: E_d = {:.6} (right wheel / left), E_b = {:.6} (true wheel base / nominal),",
+            a.robot.display(),
+            u.e_d,
+            u.e_b
+        ),
+        format!(
+            "from {} clockwise and {} counter-clockwise squares of {:.3} m (E_max,syst {:.2} mm before).",
+            u.runs_cw,
+            u.runs_ccw,
+            u.side_m,
+            u.e_max_syst_m * 1e3
+        ),
+    ];
+    let fitted_text = Robot::with_encoders(&text, &a.robot, &c.after, &note)?;
+    let fitted = Robot::parse(&fitted_text, &a.robot)?;
+    // The stream runs again, on the corrected robot.
+    let pair = calibrate::wheel_pair(&fitted)?;
+    let mut runs_after = Vec::new();
+    for r in all.iter().filter(|r| r.stream.is_some()) {
+        let path = r.stream.as_deref().expect("filtered");
+        let again = runs::stream_run(path, &fitted, r.by_hand.then_some(r.measured_end))?;
+        runs_after.push(calibrate::square_run(&fitted, pair, &again)?);
+    }
+    let e_max_syst_after_m = (!runs_after.is_empty())
+        .then(|| umbmark::umbmark(&runs_after, pair.base_m).ok())
+        .flatten()
+        .map(|u| u.e_max_syst_m);
+    if let Some(out) = &a.out {
+        host_bench::formats::atomic::write_atomically(out, |f| {
+            f.write_all(fitted_text.as_bytes())?;
+            Ok(())
+        })?;
+    }
+    let report = Report {
+        calibration: c,
+        runs_after,
+        e_max_syst_after_m,
+        out: a.out.as_ref().map(|p| p.display().to_string()),
+    };
+    if a.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print!("{}", text_report(&report));
+    }
+    Ok(())
+}
+
+fn text_report(r: &Report) -> String {
+    let c = &r.calibration;
+    let u = &c.umbmark;
+    let mm = |v: (f64, f64)| format!("({:+8.2}, {:+8.2}) mm", v.0 * 1e3, v.1 * 1e3);
+    let mut s = format!(
+        "UMBmark on robot {}: {} clockwise and {} counter-clockwise squares of {:.3} m, wheel base {:.4} m\n",
+        c.robot, u.runs_cw, u.runs_ccw, u.side_m, c.pair.base_m
+    );
+    for (k, run) in c.runs.iter().enumerate() {
+        let after = r
+            .runs_after
+            .iter()
+            .find(|a| a.name == run.name)
+            .map_or(String::new(), |a| format!("   after {}", mm(a.error_m)));
+        let way = match run.direction {
+            umbmark::Direction::Clockwise => "cw ",
+            umbmark::Direction::CounterClockwise => "ccw",
+        };
+        // Steered by its odometry (UMBmark's way), or a true square the odometry followed.
+        let kind = if run.driven_by_odometry {
+            "steered"
+        } else {
+            "true sq"
+        };
+        s += &format!(
+            "run {:<3} {way} {kind} {}{after}   {}\n",
+            k + 1,
+            mm(run.error_m),
+            run.name
+        );
+    }
+    s += &format!(
+        "centroids       clockwise {}, counter-clockwise {}\n",
+        mm(u.centroid_cw_m),
+        mm(u.centroid_ccw_m)
+    );
+    s += &format!("E_max,syst      {:.2} mm", u.e_max_syst_m * 1e3);
+    if let Some(after) = r.e_max_syst_after_m {
+        s += &format!(
+            " before, {:.2} mm after ({:.0}x less: these runs replayed on the corrected robot)",
+            after * 1e3,
+            u.e_max_syst_m / after.max(1e-12)
+        );
+    }
+    s += "\n";
+    s += &format!(
+        "alpha, beta     {:+.4} deg a corner, {:+.4} deg a leg\n",
+        u.alpha_rad.to_degrees(),
+        u.beta_rad.to_degrees()
+    );
+    s += &format!(
+        "E_d, E_b        {:.6} (right wheel's diameter over the left's), {:.6} (true wheel base over nominal); UMBmark's first-order formulas: {:.6}, {:.6}\n",
+        u.e_d, u.e_b, u.e_d_first_order, u.e_b_first_order
+    );
+    let (l, rr) = (c.pair.left, c.pair.right);
+    s += &format!(
+        "corrected       left {:.4} um/count (was {:.4}), right {:.4} um/count (was {:.4}), wheel base {:.5} m (was {:.5})\n",
+        c.after[l].metres_per_count * 1e6,
+        c.before[l].metres_per_count * 1e6,
+        c.after[rr].metres_per_count * 1e6,
+        c.before[rr].metres_per_count * 1e6,
+        c.pair.base_m * u.e_b,
+        c.pair.base_m
+    );
+    if let Some(out) = &r.out {
+        s += &format!("wrote {out}\n");
+    }
+    s
+}
