@@ -1,0 +1,186 @@
+#!/usr/bin/env python3
+"""UMBmark's figures over seeds, as the README and docs/calibration.md quote them: a robot whose
+geometry is off its robot file (the right wheel 1 % larger than the left, E_d = 1.01, and the
+wheels 3 % further apart, E_b = 1.03), its squares driven both ways, the end poses measured
+with a person's tape-measure noise, `host-bench calibrate --method umbmark`, and the squares
+driven again with the corrected robot file. Standard library only; it runs host-bench.
+
+Two robots:
+    seed002  seed 002's chassis, emulated closed loop (`emulate --true-robot`): the master
+             steers it round the square by the slave's odometry, as UMBmark prescribes. The
+             true robot is robots/seed002-as-built.toml.
+    seed001  seed 001's differential drive (no controller of ours drives it: `generate` writes
+             the true squares of the robot as built, which the odometry follows). Its as-built
+             file is written here from robots/seed001.toml.
+
+The measured end poses get uniform noise of +-1 mm in x and y and +-0.2 deg in heading, drawn
+from the noise seed; the "after" figure is the true E_max,syst of the squares driven (or
+replayed) with the corrected file, measured without noise.
+
+Usage: python3 scripts/umbmark-figures.py [--host-bench PATH] [--seeds 5] [--noise-seeds 5]
+"""
+
+import argparse
+import json
+import os
+import random
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+NOISE_M = 0.001
+NOISE_DEG = 0.2
+
+
+def run(hb, *args, out=None):
+    res = subprocess.run([hb, *args], capture_output=True, text=True)
+    if res.returncode != 0:
+        sys.exit(f"host-bench {' '.join(args)} failed:\n{res.stderr}")
+    if out:
+        with open(out, "w") as f:
+            f.write(res.stdout)
+    return res.stdout
+
+
+def noisy(rng, x, y, th):
+    return (
+        x + rng.uniform(-NOISE_M, NOISE_M),
+        y + rng.uniform(-NOISE_M, NOISE_M),
+        th + rng.uniform(-NOISE_DEG, NOISE_DEG) * 3.141592653589793 / 180.0,
+    )
+
+
+def calibrate(hb, robot, runs, out=None, measured=None):
+    args = ["calibrate", "--robot", robot, "--json", "--runs", *runs]
+    if out:
+        args += ["--out", out]
+    if measured:
+        args += ["--measured", measured]
+    return json.loads(run(hb, *args))
+
+
+def seed002(hb, tmp, seeds, noise_seeds):
+    nominal = os.path.join(ROOT, "robots/seed002.toml")
+    truly = os.path.join(ROOT, "robots/seed002-as-built.toml")
+    scen = lambda way: os.path.join(ROOT, f"scenarios/umbmark-{way}.toml")
+    drive = lambda way, robot, out: run(
+        hb, "emulate", "--scenario", scen(way), "--true-robot", truly, "--sweep", str(seeds),
+        "--json", *(["--robot", robot] if robot else []), out=out)
+    before = {}
+    for way in ("cw", "ccw"):
+        before[way] = os.path.join(tmp, f"002-{way}.json")
+        drive(way, None, before[way])
+    rows = []
+    for ns in range(noise_seeds):
+        rng = random.Random(ns)
+        runs = []
+        for way in ("cw", "ccw"):
+            with open(before[way]) as f:
+                sweep = json.load(f)
+            for r in sweep["runs"]:
+                x, y = r["final_position_m"]
+                x, y, th = noisy(rng, x, y, r["final_heading_rad"])
+                r["final_position_m"], r["final_heading_rad"] = [x, y], th
+            path = os.path.join(tmp, f"002-{way}-noisy-{ns}.json")
+            with open(path, "w") as f:
+                json.dump(sweep, f)
+            runs.append(path)
+        fitted = os.path.join(tmp, f"002-fitted-{ns}.toml")
+        c = calibrate(hb, nominal, runs, out=fitted)
+        again = []
+        for way in ("cw", "ccw"):
+            path = os.path.join(tmp, f"002-{way}-after-{ns}.json")
+            drive(way, fitted, path)
+            again.append(path)
+        a = calibrate(hb, fitted, again)
+        rows.append((c["umbmark"], a["umbmark"]["e_max_syst_m"]))
+    return rows
+
+
+def as_built_seed001(tmp):
+    """seed001.toml with the right wheel 1 % larger than the left and a 3 % wider track."""
+    with open(os.path.join(ROOT, "robots/seed001.toml")) as f:
+        text = f.read()
+    text = text.replace('name = "seed001"', 'name = "seed001-as-built"')
+    k = 0.0004
+    left, right = k * 2 / 2.01, k * 2 * 1.01 / 2.01
+    parts = text.split("[[encoders]]")
+    assert len(parts) == 3
+    parts[1] = parts[1].replace("y_m = 0.15", "y_m = 0.1545").replace(
+        "metres_per_count = 0.0004", f"metres_per_count = {left!r}")
+    parts[2] = parts[2].replace("y_m = -0.15", "y_m = -0.1545").replace(
+        "metres_per_count = 0.0004", f"metres_per_count = {right!r}", 1)
+    path = os.path.join(tmp, "seed001-as-built.toml")
+    with open(path, "w") as f:
+        f.write("[[encoders]]".join(parts))
+    return path
+
+
+def last_truth(path):
+    last = None
+    with open(path) as f:
+        for line in f:
+            if ",truth," in line:
+                last = line
+    t, _, _, _, x, y, th = last.strip().split(",")
+    return float(x), float(y), float(th)
+
+
+def seed001(hb, tmp, seeds, noise_seeds):
+    nominal = os.path.join(ROOT, "robots/seed001.toml")
+    truly = as_built_seed001(tmp)
+    streams = []
+    for way in ("cw", "ccw"):
+        for s in range(seeds):
+            path = os.path.join(tmp, f"001-{way}-{s}.csv")
+            run(hb, "generate", "--robot", truly, "--trajectory", f"umbmark-{way}", "--seed",
+                str(s), "--out", path)
+            streams.append(path)
+    rows = []
+    for ns in range(noise_seeds):
+        rng = random.Random(1000 + ns)
+        measured = os.path.join(tmp, f"001-measured-{ns}.csv")
+        with open(measured, "w") as f:
+            f.write("run,x_m,y_m,heading_deg\n")
+            for s in streams:
+                x, y, th = noisy(rng, *last_truth(s))
+                f.write(f"{s},{x!r},{y!r},{th * 180 / 3.141592653589793!r}\n")
+        fitted = os.path.join(tmp, f"001-fitted-{ns}.toml")
+        c = calibrate(hb, nominal, streams, out=fitted, measured=measured)
+        # The same true squares replayed on the corrected file, their true end poses.
+        a = calibrate(hb, fitted, streams)
+        rows.append((c["umbmark"], a["umbmark"]["e_max_syst_m"]))
+    return rows
+
+
+def report(name, rows):
+    before = [u["e_max_syst_m"] for u, _ in rows]
+    after = [a for _, a in rows]
+    ratio = [b / a for b, a in zip(before, after)]
+    ed = [u["e_d"] for u, _ in rows]
+    eb = [u["e_b"] for u, _ in rows]
+    mm = lambda v: f"{min(v) * 1e3:.2f} / {statistics.median(v) * 1e3:.2f} / {max(v) * 1e3:.2f}"
+    print(f"{name}: E_max,syst before {mm(before)} mm, after {mm(after)} mm (min / median / max over "
+          f"{len(rows)} noise seeds); {min(ratio):.0f}x to {max(ratio):.0f}x less; "
+          f"E_d {min(ed):.5f} to {max(ed):.5f}, E_b {min(eb):.5f} to {max(eb):.5f} (true: 1.01, 1.03)")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--host-bench", default=os.path.join(ROOT, "target/debug/host-bench"))
+    ap.add_argument("--seeds", type=int, default=5, help="squares each way (power-on seeds)")
+    ap.add_argument("--noise-seeds", type=int, default=5, help="draws of the measuring noise")
+    a = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        report(f"seed002 (emulated, steered by its odometry, {a.seeds} squares each way)",
+               seed002(a.host_bench, tmp, a.seeds, a.noise_seeds))
+        report(f"seed001 (generated true squares, {a.seeds} each way)",
+               seed001(a.host_bench, tmp, a.seeds, a.noise_seeds))
+
+
+if __name__ == "__main__":
+    main()
