@@ -651,3 +651,44 @@ fn replay_exact(out: &Path) -> (TickStream, host_bench::eval::replay::Score) {
     .unwrap();
     (stream, score)
 }
+
+/// `virtual-board --true-robot`: the simulated wheels are seed002-as-built's (right wheel 1 %
+/// larger, wheels 3 % further apart) while the slave is told of seed002's. The recording is
+/// the true robot's: replayed on its true file it holds to the truth, on the nominal file
+/// (the slave's own view, and its poses) it turns away.
+#[test]
+fn a_virtual_board_whose_robot_is_not_as_told_records_the_true_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let (nominal, truly) = (
+        repo.join("robots/seed002.toml"),
+        repo.join("robots/seed002-as-built.toml"),
+    );
+    let layout = |p: &Path| Robot::load(p).unwrap().odometry_layout().unwrap();
+    let mut opts = virtual_board::Options::for_robot(layout(&nominal));
+    opts.true_layout = Some(layout(&truly));
+    let board = Board::start(opts);
+    let out = dir.path().join("rec.csv");
+    let o = record::record(
+        &mut board.link(),
+        &board::recording(&out, Some(nominal.as_path()), false),
+    )
+    .unwrap();
+    assert!(o.ticks > 1000, "{o:?}");
+    let stream = tickstream::read(&out).unwrap();
+    let on = |robot: &Path| {
+        let robot = Robot::load(robot).unwrap();
+        let mode = host_bench::eval::replay::Mode::Timestamps;
+        host_bench::eval::replay::replay(&robot, &stream, "exact", mode).unwrap()
+    };
+    let (right, wrong) = (on(&truly), on(&nominal));
+    assert!(
+        right.final_error_m < 1e-3 && right.final_heading_error_rad.abs() < 1e-3,
+        "{right:?}"
+    );
+    assert!(
+        wrong.final_heading_error_rad.abs() > 10.0 * right.final_heading_error_rad.abs()
+            && wrong.final_heading_error_rad.abs() > 3e-3,
+        "true {right:?}, nominal {wrong:?}"
+    );
+}

@@ -239,18 +239,31 @@ mod tests {
     use super::*;
     use robot_math::se2::wrap_angle;
 
-    /// Where a differential drive ends that believes it drove a square of side `l` (its
-    /// odometry saying it came back), when its right wheel is `e_d` times the left's and its
-    /// wheel base `e_b` times what the odometry takes: in small steps, each wheel's true
-    /// travel from what the odometry commanded. Returns the start-frame error.
-    fn drive_square(l: f64, b: f64, e_d: f64, e_b: f64, dir: Direction) -> (f64, f64) {
+    /// A square of side `l` in small steps, by a differential drive whose right wheel is
+    /// `e_d` times the left's and whose wheel base is `e_b` times the odometry's `b`:
+    /// `steered`, the odometry counts the square and the robot ends off (UMBmark's way);
+    /// else the robot drives a true square and the odometry, counting it with the nominal
+    /// numbers, ends off. The return error, true end minus odometry's.
+    fn small_steps(
+        l: f64,
+        b: f64,
+        e_d: f64,
+        e_b: f64,
+        dir: Direction,
+        steered: bool,
+    ) -> (f64, f64) {
         let (cl, cr) = (2.0 / (e_d + 1.0), 2.0 * e_d / (e_d + 1.0));
+        // What the moving path's wheels roll per unit of the square's, and its base.
+        let (kl, kr, base) = if steered {
+            (cl, cr, b * e_b)
+        } else {
+            (1.0 / cl, 1.0 / cr, b)
+        };
         let (mut x, mut y, mut th) = (0.0f64, 0.0f64, 0.0f64);
         let mut step = |dl: f64, dr: f64| {
-            // Commanded wheel travels (what the odometry counts), and what the wheels did.
-            let (tl, tr) = (dl * cl, dr * cr);
+            let (tl, tr) = (dl * kl, dr * kr);
             let ds = (tl + tr) / 2.0;
-            let dth = (tr - tl) / (b * e_b);
+            let dth = (tr - tl) / base;
             x += ds * (th + dth / 2.0).cos();
             y += ds * (th + dth / 2.0).sin();
             th = wrap_angle(th + dth);
@@ -260,17 +273,21 @@ mod tests {
             Direction::Clockwise => -1.0,
             Direction::CounterClockwise => 1.0,
         };
+        // A quarter turn in place of the square's own wheels (the odometry's, or the true).
+        let arc = turn * std::f64::consts::FRAC_PI_2 * if steered { b } else { b * e_b } / 2.0;
         for _ in 0..4 {
             for _ in 0..n {
                 step(l / n as f64, l / n as f64);
             }
-            // A quarter turn in place, as the odometry counts it.
-            let arc = turn * std::f64::consts::FRAC_PI_2 * b / 2.0;
             for _ in 0..n {
                 step(-arc / n as f64, arc / n as f64);
             }
         }
-        (x, y)
+        if steered {
+            (x, y)
+        } else {
+            (-x, -y)
+        }
     }
 
     /// The formulas recover what the simulated drive had (in 80 000 small steps, not the
@@ -286,7 +303,7 @@ mod tests {
                     name: format!("{d:?}"),
                     direction: d,
                     side_m: l,
-                    error_m: drive_square(l, b, e_d, e_b, d),
+                    error_m: small_steps(l, b, e_d, e_b, d, true),
                     driven_by_odometry: true,
                 })
                 .collect();
@@ -303,36 +320,7 @@ mod tests {
     }
 
     /// The other way round: the robot drives a true square (a generated stream), and the
-    /// odometry, counting with the nominal numbers, ends off. In small steps again.
-    fn odometry_of_a_true_square(l: f64, b: f64, e_d: f64, e_b: f64, dir: Direction) -> (f64, f64) {
-        let (cl, cr) = (2.0 / (e_d + 1.0), 2.0 * e_d / (e_d + 1.0));
-        let (mut x, mut y, mut th) = (0.0f64, 0.0f64, 0.0f64);
-        // The wheels truly rolled `tl`, `tr`; the odometry takes `tl / cl`, `tr / cr` on `b`.
-        let mut step = |tl: f64, tr: f64| {
-            let (dl, dr) = (tl / cl, tr / cr);
-            let ds = (dl + dr) / 2.0;
-            let dth = (dr - dl) / b;
-            x += ds * (th + dth / 2.0).cos();
-            y += ds * (th + dth / 2.0).sin();
-            th = wrap_angle(th + dth);
-        };
-        let n = 20_000;
-        let turn = match dir {
-            Direction::Clockwise => -1.0,
-            Direction::CounterClockwise => 1.0,
-        };
-        for _ in 0..4 {
-            for _ in 0..n {
-                step(l / n as f64, l / n as f64);
-            }
-            let arc = turn * std::f64::consts::FRAC_PI_2 * b * e_b / 2.0;
-            for _ in 0..n {
-                step(-arc / n as f64, arc / n as f64);
-            }
-        }
-        (-x, -y)
-    }
-
+    /// odometry ends off.
     #[test]
     fn recovers_them_from_true_squares_too() {
         let (l, b, e_d, e_b) = (4.0, 0.3, 1.01, 1.03);
@@ -342,7 +330,7 @@ mod tests {
                 name: format!("{d:?}"),
                 direction: d,
                 side_m: l,
-                error_m: odometry_of_a_true_square(l, b, e_d, e_b, d),
+                error_m: small_steps(l, b, e_d, e_b, d, false),
                 driven_by_odometry: false,
             })
             .collect();

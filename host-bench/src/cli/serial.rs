@@ -417,6 +417,12 @@ pub struct VirtualBoardArgs {
     /// 004's counts, scaled to a robot file's finer or coarser ones.
     #[arg(long, value_name = "M_S")]
     pub course_speed: Option<f64>,
+    /// The robot as it really is, when it is not as the slave is told (--robot, or its
+    /// power-on robot): the simulated measuring wheels follow this file, so a recording shows
+    /// what wrong geometry does and `calibrate` can find it. Two encoders, on the body or a
+    /// carriage as the slave's.
+    #[arg(long, value_name = "FILE")]
+    pub true_robot: Option<PathBuf>,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -438,6 +444,32 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         edges: host_bench::sim::generate::EdgeErrors::preset(&a.edges).context("--edges")?,
         ..virtual_board::Options::for_robot(layout)
     };
+    if let Some(path) = &a.true_robot {
+        let what = || format!("--true-robot {}", path.display());
+        let robot = host_bench::formats::robot::Robot::load(path).with_context(what)?;
+        let truly = robot.odometry_layout().with_context(what)?;
+        let carriage = |l: &robot_math::odometry::Layout| l.carriage_geometry().is_some();
+        if truly.encoders() != layout.encoders() || carriage(&truly) != carriage(&layout) {
+            bail!(
+                "{}: it must be the kind of robot the slave is told of ({} encoders, {}); it \
+                 has {} encoders, {}",
+                what(),
+                layout.encoders(),
+                if carriage(&layout) {
+                    "on a carriage"
+                } else {
+                    "on the body"
+                },
+                truly.encoders(),
+                if carriage(&truly) {
+                    "on a carriage"
+                } else {
+                    "on the body"
+                },
+            );
+        }
+        opts.true_layout = Some(truly);
+    }
     if let Some(v) = a.course_speed {
         if !(v > 0.0 && v <= 1.0) {
             bail!("--course-speed is the robot's speed round its course, over 0 and at most 1 m/s: got {v}");
@@ -504,14 +536,22 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
                 .display()
         )
     })?;
+    if let Some(truly) = &opts.true_layout {
+        host_bench::sim::plant::MeasuringSensors::from_layout(truly).map_err(|e| {
+            anyhow::anyhow!("--true-robot: the virtual board cannot simulate it: {e}")
+        })?;
+    }
     let (pty, _slave_end, name) = virtual_board::open_pty()?;
     // The first line is the port, for scripts: `port: /dev/pts/N`.
     println!("port: {name}");
     use std::io::Write;
     std::io::stdout().flush()?;
+    let truly = a.true_robot.as_ref().map_or(String::new(), |p| {
+        format!("; its wheels really as {}", p.display())
+    });
     eprintln!(
-        "virtual board (robot {robot_name}, driven round a {} m square at {:.3} m/s) serving; \
-         Ctrl-C ends it",
+        "virtual board (robot {robot_name}{truly}, driven round a {} m square at {:.3} m/s) \
+         serving; Ctrl-C ends it",
         opts.course_side, opts.course_speed
     );
     virtual_board::serve(pty, &opts, &|| false)

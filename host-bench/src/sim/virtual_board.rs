@@ -73,6 +73,9 @@ pub struct Options {
     /// Where the measuring encoders put their edges (ideal, or a datasheet's errors, each
     /// encoder's drawn from `seed`).
     pub edges: crate::sim::generate::EdgeErrors,
+    /// The robot's measuring sensors as they really are, when they are not as the slave is
+    /// told (`--true-robot`): the simulated wheels follow these. None: the slave's own.
+    pub true_layout: Option<Layout>,
 }
 
 impl Default for Options {
@@ -93,6 +96,7 @@ impl Options {
             course_side: 1.0,
             course_speed,
             edges: crate::sim::generate::EdgeErrors::IDEAL,
+            true_layout: None,
         }
     }
 }
@@ -231,8 +235,9 @@ pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
 pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     let drive = omni_drive(&opts.master)?;
-    let sensors = MeasuringSensors::from_layout(opts.slave.layout())
-        .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
+    let sensors =
+        MeasuringSensors::from_layout(opts.true_layout.as_ref().unwrap_or(opts.slave.layout()))
+            .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
     let plant_cfg = PlantConfig {
         drive: DriveKinematics::Omni3(drive),
         // The course below drives open loop: no speed loops, no motor encoders.
