@@ -18,6 +18,8 @@ from the noise seed; the "after" figure is the true E_max,syst of the squares dr
 replayed) with the corrected file, measured without noise.
 
 Usage: python3 scripts/umbmark-figures.py [--host-bench PATH] [--seeds 5] [--noise-seeds 5]
+                                          [--goal X]
+With --goal, exits 1 unless every calibration cut E_max,syst at least X times.
 """
 
 import argparse
@@ -157,7 +159,7 @@ def seed001(hb, tmp, seeds, noise_seeds):
     return rows
 
 
-def report(name, rows):
+def report(name, rows, goal):
     before = [u["e_max_syst_m"] for u, _ in rows]
     after = [a for _, a in rows]
     ratio = [b / a for b, a in zip(before, after)]
@@ -167,6 +169,11 @@ def report(name, rows):
     print(f"{name}: E_max,syst before {mm(before)} mm, after {mm(after)} mm (min / median / max over "
           f"{len(rows)} noise seeds); {min(ratio):.0f}x to {max(ratio):.0f}x less; "
           f"E_d {min(ed):.5f} to {max(ed):.5f}, E_b {min(eb):.5f} to {max(eb):.5f} (true: 1.01, 1.03)")
+    if goal and min(ratio) < goal:
+        print(f"error: {name}: E_max,syst cut only {min(ratio):.1f}x, the goal is {goal}x",
+              file=sys.stderr)
+        return False
+    return True
 
 
 def main():
@@ -174,12 +181,14 @@ def main():
     ap.add_argument("--host-bench", default=os.path.join(ROOT, "target/debug/host-bench"))
     ap.add_argument("--seeds", type=int, default=5, help="squares each way (power-on seeds)")
     ap.add_argument("--noise-seeds", type=int, default=5, help="draws of the measuring noise")
+    ap.add_argument("--goal", type=float, default=0, help="least cut of E_max,syst, or exit 1")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        report(f"seed002 (emulated, steered by its odometry, {a.seeds} squares each way)",
-               seed002(a.host_bench, tmp, a.seeds, a.noise_seeds))
-        report(f"seed001 (generated true squares, {a.seeds} each way)",
-               seed001(a.host_bench, tmp, a.seeds, a.noise_seeds))
+        ok = report(f"seed002 (emulated, steered by its odometry, {a.seeds} squares each way)",
+                    seed002(a.host_bench, tmp, a.seeds, a.noise_seeds), a.goal)
+        ok &= report(f"seed001 (generated true squares, {a.seeds} each way)",
+                     seed001(a.host_bench, tmp, a.seeds, a.noise_seeds), a.goal)
+    sys.exit(0 if ok else 1)
 
 
 if __name__ == "__main__":

@@ -125,6 +125,43 @@ pub fn square_run(robot: &Robot, pair: WheelPair, run: &RunEnd) -> Result<Square
     })
 }
 
+/// How much the factors move when one run is left out: the spread of repeated calibrations,
+/// which a standard deviation from one fit understates (Censi et al. found theirs spread
+/// about five times their stated σ).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Repeatability {
+    /// Fits made, one with each run left out (a direction keeps at least one run).
+    pub subsets: usize,
+    pub e_d_min: f64,
+    pub e_d_max: f64,
+    pub e_b_min: f64,
+    pub e_b_max: f64,
+}
+
+/// UMBmark again with each run left out in turn; none when no run can be spared.
+fn leave_one_out(squares: &[SquareRun], base: f64) -> Option<Repeatability> {
+    let fits: Vec<Umbmark> = (0..squares.len())
+        .filter_map(|k| {
+            let rest: Vec<SquareRun> = (squares.iter().enumerate())
+                .filter(|&(i, _)| i != k)
+                .map(|(_, r)| r.clone())
+                .collect();
+            umbmark::umbmark(&rest, base).ok()
+        })
+        .collect();
+    let span = |f: fn(&Umbmark) -> f64| {
+        (fits.iter().map(f)).fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)))
+    };
+    let ((e_d_min, e_d_max), (e_b_min, e_b_max)) = (span(|u| u.e_d), span(|u| u.e_b));
+    (!fits.is_empty()).then_some(Repeatability {
+        subsets: fits.len(),
+        e_d_min,
+        e_d_max,
+        e_b_min,
+        e_b_max,
+    })
+}
+
 /// What a UMBmark calibration found and made.
 #[derive(Clone, Debug, Serialize)]
 pub struct UmbmarkCalibration {
@@ -132,6 +169,8 @@ pub struct UmbmarkCalibration {
     pub method: &'static str,
     pub pair: WheelPair,
     pub umbmark: Umbmark,
+    /// The factors fitted with each run left out in turn.
+    pub repeatability: Option<Repeatability>,
     pub runs: Vec<SquareRun>,
     pub before: Vec<EncoderGeometry>,
     pub after: Vec<EncoderGeometry>,
@@ -167,6 +206,7 @@ pub fn calibrate_umbmark(robot: &Robot, runs: &[RunEnd]) -> Result<UmbmarkCalibr
         method: "umbmark",
         pair,
         umbmark: u,
+        repeatability: leave_one_out(&squares, pair.base_m),
         runs: squares,
         before,
         after,

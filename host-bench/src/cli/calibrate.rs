@@ -174,6 +174,12 @@ fn text_report(r: &Report) -> String {
         "E_d, E_b        {:.6} (right wheel's diameter over the left's), {:.6} (true wheel base over nominal); UMBmark's first-order formulas: {:.6}, {:.6}\n",
         u.e_d, u.e_b, u.e_d_first_order, u.e_b_first_order
     );
+    if let Some(r) = &c.repeatability {
+        s += &format!(
+            "repeatability   each run left out in turn ({} fits): E_d {:.6} to {:.6}, E_b {:.6} to {:.6}\n",
+            r.subsets, r.e_d_min, r.e_d_max, r.e_b_min, r.e_b_max
+        );
+    }
     let (l, rr) = (c.pair.left, c.pair.right);
     s += &format!(
         "corrected       left {:.4} um/count (was {:.4}), right {:.4} um/count (was {:.4}), wheel base {:.5} m (was {:.5})\n",
