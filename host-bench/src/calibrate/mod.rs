@@ -5,8 +5,10 @@
 //! wheels. The runs ([`runs`]) are tick streams replayed on the nominal robot, or emulated runs
 //! whose slave ran it.
 
+pub mod fit;
 pub mod runs;
 pub mod umbmark;
+pub mod wiring;
 
 use anyhow::{bail, Result};
 use serde::Serialize;
@@ -176,8 +178,19 @@ pub struct UmbmarkCalibration {
     pub after: Vec<EncoderGeometry>,
 }
 
+/// Every run's wiring verdict ([`wiring::check`]), before any fit.
+pub fn check_wiring(robot: &Robot, runs: &[RunEnd]) -> Result<()> {
+    for r in runs {
+        if let Some(agree) = &r.agreement {
+            wiring::check(robot, &r.name, agree)?;
+        }
+    }
+    Ok(())
+}
+
 /// UMBmark on `runs` of `robot`, and its encoders corrected.
 pub fn calibrate_umbmark(robot: &Robot, runs: &[RunEnd]) -> Result<UmbmarkCalibration> {
+    check_wiring(robot, runs)?;
     let pair = wheel_pair(robot)?;
     let squares = (runs.iter())
         .map(|r| square_run(robot, pair, r))

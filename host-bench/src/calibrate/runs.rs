@@ -32,6 +32,12 @@ pub struct RunEnd {
     pub by_hand: bool,
     /// Each measuring encoder's count change over the run.
     pub counts: Vec<i64>,
+    /// The same in short bins (`counts.len()` a bin; [`BIN_NS`], [`BIN_COUNTS`]), for a fit
+    /// that dead-reckons the run again; empty for an emulated run (its ticks are not kept).
+    pub bins: Vec<i32>,
+    /// How each encoder's counts agree with the rolling the truth gives each wheel
+    /// ([`super::wiring::agreement`]); none without a track of truth.
+    pub agreement: Option<Vec<Vec<f64>>>,
     /// The tick stream it came from, to be replayed again on a corrected robot (none for an
     /// emulated run: drive it again instead).
     pub stream: Option<PathBuf>,
@@ -189,6 +195,8 @@ pub fn stream_run(path: &Path, robot: &Robot, measured: Option<Pose2>) -> Result
             }
         }
     }
+    let bins = bins(&stream.events, n, start_t, end_t);
+    let agreement = super::wiring::agreement(robot, &stream.events);
     let score = replay::replay(robot, &stream, "exact", Mode::Timestamps)
         .with_context(|| format!("{}: replaying it on robot {}", path.display(), robot.name))?;
     let &(_, odometry_end, _) = score.track.last().context("no truth row scored")?;
@@ -199,8 +207,52 @@ pub fn stream_run(path: &Path, robot: &Robot, measured: Option<Pose2>) -> Result
         measured_end,
         by_hand: measured.is_some(),
         counts,
+        bins,
+        agreement,
         stream: Some(path.to_path_buf()),
     })
+}
+
+/// A bin of a run's counts ends after this long ...
+pub const BIN_NS: u64 = 10_000_000;
+/// ... or once an encoder has counted this many.
+pub const BIN_COUNTS: i32 = 16;
+
+/// The ticks of `events` (sorted) in `(from, to]` as count changes in bins.
+fn bins(events: &[Event], n: usize, from: u64, to: u64) -> Vec<i32> {
+    let mut out = Vec::new();
+    let mut bin = vec![0i32; n];
+    let mut bin_start = from;
+    let flush = |bin: &mut Vec<i32>, out: &mut Vec<i32>| {
+        if bin.iter().any(|&c| c != 0) {
+            out.extend_from_slice(bin);
+            bin.iter_mut().for_each(|c| *c = 0);
+        }
+    };
+    for e in events {
+        let Event::Tick {
+            t_ns,
+            encoder,
+            step,
+        } = *e
+        else {
+            continue;
+        };
+        if t_ns <= from || t_ns > to || encoder as usize >= n {
+            continue;
+        }
+        if t_ns - bin_start >= BIN_NS {
+            flush(&mut bin, &mut out);
+            bin_start = t_ns;
+        }
+        bin[encoder as usize] += step as i32;
+        if bin[encoder as usize].abs() >= BIN_COUNTS {
+            flush(&mut bin, &mut out);
+            bin_start = t_ns;
+        }
+    }
+    flush(&mut bin, &mut out);
+    out
 }
 
 /// What `calibrate` reads of an `emulate` summary.
@@ -274,6 +326,8 @@ fn emulated_runs(path: &Path, robot: &Robot) -> Result<Vec<RunEnd>> {
                 ),
                 by_hand: false,
                 counts: r.measuring_counts.to_vec(),
+                bins: Vec::new(),
+                agreement: None,
                 stream: None,
             })
         })

@@ -1,41 +1,12 @@
-//! `host-bench calibrate`: a robot's geometry errors from runs, and its robot file corrected.
+//! `calibrate --method umbmark`: the report, and the runs replayed on the corrected robot.
 
-use std::io::Write as _;
-use std::path::PathBuf;
-
-use anyhow::{Context, Result};
-use clap::Args;
+use anyhow::Result;
 use host_bench::calibrate::runs::{self, RunEnd};
 use host_bench::calibrate::{self, umbmark};
 use host_bench::formats::robot::Robot;
 use serde::Serialize;
 
-#[derive(Args)]
-pub struct CalibrateArgs {
-    /// The robot file the runs were driven with (its nominal geometry).
-    #[arg(long, value_name = "FILE")]
-    pub robot: PathBuf,
-    /// The runs: tick streams (their end pose the last truth row, or --measured), or what
-    /// `emulate --json` printed (one run, or a --sweep's runs).
-    #[arg(long, value_name = "FILE", num_args = 1.., required = true)]
-    pub runs: Vec<PathBuf>,
-    /// `umbmark`: Borenstein's UMBmark, for two parallel measuring wheels, from squares
-    /// driven both ways (docs/calibration.md).
-    #[arg(long, default_value = "umbmark", value_parser = ["umbmark"])]
-    pub method: String,
-    /// End poses measured by hand, `run,x_m,y_m,heading_deg` (run: the file as given to
-    /// --runs, or its name), in the frame the run started in (origin, facing +x) for a stream
-    /// with no truth rows, else in its truth's frame.
-    #[arg(long, value_name = "FILE")]
-    pub measured: Option<PathBuf>,
-    /// Write the corrected robot file here: the nominal file with its encoders' numbers
-    /// replaced, every comment kept, whole or not at all.
-    #[arg(long, value_name = "FILE")]
-    pub out: Option<PathBuf>,
-    /// Print the whole calibration as one JSON object.
-    #[arg(long)]
-    pub json: bool,
-}
+use super::CalibrateArgs;
 
 /// The calibration and what it does to the runs it came from.
 #[derive(Serialize)]
@@ -49,27 +20,8 @@ struct Report {
     out: Option<String>,
 }
 
-pub fn run_calibrate(a: CalibrateArgs) -> Result<()> {
-    // Every output checked before any work.
-    if let Some(out) = &a.out {
-        host_bench::formats::atomic::check_output(out).context("--out")?;
-        let mut inputs = vec![("the robot file", a.robot.as_path())];
-        inputs.extend(a.runs.iter().map(|r| ("a run", r.as_path())));
-        inputs.extend(a.measured.as_deref().map(|m| ("the measured poses", m)));
-        host_bench::formats::atomic::refuse_inputs("--out", std::slice::from_ref(out), &inputs)?;
-    }
-    let text = std::fs::read_to_string(&a.robot)
-        .with_context(|| format!("--robot {}", a.robot.display()))?;
-    let robot = Robot::parse(&text, &a.robot)?;
-    let measured = match &a.measured {
-        Some(m) => runs::read_measured(m)?,
-        None => Default::default(),
-    };
-    let mut all: Vec<RunEnd> = Vec::new();
-    for path in &a.runs {
-        all.extend(runs::read_runs(path, &robot, &measured)?);
-    }
-    let c = calibrate::calibrate_umbmark(&robot, &all)?;
+pub(super) fn run(a: &CalibrateArgs, text: &str, robot: &Robot, all: &[RunEnd]) -> Result<()> {
+    let c = calibrate::calibrate_umbmark(robot, all)?;
     let u = &c.umbmark;
     let note = [
         format!(
@@ -86,7 +38,7 @@ pub fn run_calibrate(a: CalibrateArgs) -> Result<()> {
             u.e_max_syst_m * 1e3
         ),
     ];
-    let fitted_text = Robot::with_encoders(&text, &a.robot, &c.after, &note)?;
+    let fitted_text = Robot::with_encoders(text, &a.robot, &c.after, &note)?;
     let fitted = Robot::parse(&fitted_text, &a.robot)?;
     // The stream runs again, on the corrected robot.
     let pair = calibrate::wheel_pair(&fitted)?;
@@ -100,12 +52,7 @@ pub fn run_calibrate(a: CalibrateArgs) -> Result<()> {
         .then(|| umbmark::umbmark(&runs_after, pair.base_m).ok())
         .flatten()
         .map(|u| u.e_max_syst_m);
-    if let Some(out) = &a.out {
-        host_bench::formats::atomic::write_atomically(out, |f| {
-            f.write_all(fitted_text.as_bytes())?;
-            Ok(())
-        })?;
-    }
+    super::write_out(a, &fitted_text)?;
     let report = Report {
         calibration: c,
         runs_after,
