@@ -57,6 +57,10 @@ pub struct Fitted {
     pub before: f64,
     pub after: f64,
     pub sigma: f64,
+    /// Its least and largest value over the fits with one run left out (none when no run
+    /// can be spared).
+    pub repeat_min: Option<f64>,
+    pub repeat_max: Option<f64>,
 }
 
 /// The fit's result.
@@ -75,8 +79,11 @@ pub struct Fit {
     pub rms_before: f64,
     pub rms_after: f64,
     pub iterations: usize,
-    /// Wall-clock seconds the fit took (the runs read and binned before).
+    /// Fits made with one run left out, for each parameter's `repeat_min`/`repeat_max`.
+    pub subsets: usize,
+    /// Wall-clock seconds the fit took (the runs read and binned before), and the subsets'.
     pub fit_seconds: f64,
+    pub subsets_seconds: f64,
 }
 
 /// The model: which parameters are free, and the nominal geometry they move.
@@ -196,59 +203,31 @@ pub fn fit(
             model.free.len().div_ceil(3)
         );
     }
-    let cost = |p: &DVector<f64>| residuals(&model.geometry(p), runs, noise);
-    let jacobian = |p: &DVector<f64>, r0: &DVector<f64>| -> Option<DMatrix<f64>> {
-        let mut j = DMatrix::zeros(m, p.len());
-        for k in 0..p.len() {
-            let h = model.scale(k) * 1e-4;
-            let mut q = p.clone();
-            q[k] += h;
-            let r = cost(&q)?;
-            j.set_column(k, &((r - r0) / h));
-        }
-        Some(j)
-    };
     let wall = std::time::Instant::now();
-    let mut p = model.start();
-    let mut r = cost(&p).ok_or_else(|| anyhow::anyhow!("the nominal geometry cannot be solved"))?;
-    let rms_before = (r.norm_squared() / m as f64).sqrt();
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
-    for it in 0..100 {
-        iterations = it + 1;
-        let Some(j) = jacobian(&p, &r) else {
-            bail!("the geometry left the solvable during the fit")
-        };
-        let jtj = j.transpose() * &j;
-        let g = j.transpose() * &r;
-        let mut improved = false;
-        while lambda < 1e12 {
-            let mut a = jtj.clone();
-            for k in 0..a.nrows() {
-                a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
-            }
-            let Some(step) = a.lu().solve(&(-&g)) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let q = &p + &step;
-            match cost(&q) {
-                Some(rq) if rq.norm_squared() < r.norm_squared() => {
-                    let small =
-                        (0..step.len()).all(|k| step[k].abs() < 1e-10 * model.scale(k) * 100.0);
-                    p = q;
-                    r = rq;
-                    lambda = (lambda / 10.0).max(1e-12);
-                    improved = !small;
-                    break;
+    let start = model.start();
+    let r0 = residuals(&model.geometry(&start), runs, noise)
+        .ok_or_else(|| anyhow::anyhow!("the nominal geometry cannot be solved"))?;
+    let rms_before = (r0.norm_squared() / m as f64).sqrt();
+    let (p, r, iterations) = levenberg_marquardt(&model, runs, noise, start.clone())?;
+    let fit_seconds = wall.elapsed().as_secs_f64();
+    // Repeatability: the fit again with each run left out in turn, from the nominal.
+    let mut spread: Vec<(f64, f64)> = vec![(f64::MAX, f64::MIN); p.len()];
+    let mut subsets = 0;
+    if 3 * (runs.len() - 1) >= model.free.len() && runs.len() > 1 {
+        for k in 0..runs.len() {
+            let rest: Vec<BinnedRun> = (runs.iter().enumerate())
+                .filter(|&(i, _)| i != k)
+                .map(|(_, r)| r.clone())
+                .collect();
+            if let Ok((q, _, _)) = levenberg_marquardt(&model, &rest, noise, start.clone()) {
+                subsets += 1;
+                for (s, v) in spread.iter_mut().zip(q.iter()) {
+                    *s = (s.0.min(*v), s.1.max(*v));
                 }
-                _ => lambda *= 10.0,
             }
-        }
-        if !improved {
-            break;
         }
     }
+    let jacobian = |p: &DVector<f64>, r0: &DVector<f64>| jacobian(&model, runs, noise, p, r0);
     let j =
         jacobian(&p, &r).ok_or_else(|| anyhow::anyhow!("the fitted geometry cannot be solved"))?;
     // Conditioning on parameters in their own scales, so units do not decide it.
@@ -298,6 +277,8 @@ pub fn fit(
             before,
             after: p[k],
             sigma,
+            repeat_min: (subsets > 0).then_some(spread[k].0),
+            repeat_max: (subsets > 0).then_some(spread[k].1),
         });
     }
     for f in &params {
@@ -321,8 +302,79 @@ pub fn fit(
         rms_before,
         rms_after: (r.norm_squared() / m as f64).sqrt(),
         iterations,
-        fit_seconds: wall.elapsed().as_secs_f64(),
+        subsets,
+        fit_seconds,
+        subsets_seconds: wall.elapsed().as_secs_f64() - fit_seconds,
     })
+}
+
+/// The numeric Jacobian of the residuals at `p` (whose residuals are `r0`).
+fn jacobian(
+    model: &Model,
+    runs: &[BinnedRun],
+    noise: Noise,
+    p: &DVector<f64>,
+    r0: &DVector<f64>,
+) -> Option<DMatrix<f64>> {
+    let mut j = DMatrix::zeros(r0.len(), p.len());
+    for k in 0..p.len() {
+        let h = model.scale(k) * 1e-4;
+        let mut q = p.clone();
+        q[k] += h;
+        let r = residuals(&model.geometry(&q), runs, noise)?;
+        j.set_column(k, &((r - r0) / h));
+    }
+    Some(j)
+}
+
+/// Levenberg–Marquardt from `start`: the parameters, their residuals, the iterations.
+fn levenberg_marquardt(
+    model: &Model,
+    runs: &[BinnedRun],
+    noise: Noise,
+    start: DVector<f64>,
+) -> Result<(DVector<f64>, DVector<f64>, usize)> {
+    let cost = |p: &DVector<f64>| residuals(&model.geometry(p), runs, noise);
+    let mut p = start;
+    let mut r = cost(&p).ok_or_else(|| anyhow::anyhow!("the nominal geometry cannot be solved"))?;
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    for it in 0..100 {
+        iterations = it + 1;
+        let Some(j) = jacobian(model, runs, noise, &p, &r) else {
+            bail!("the geometry left the solvable during the fit")
+        };
+        let jtj = j.transpose() * &j;
+        let g = j.transpose() * &r;
+        let mut improved = false;
+        while lambda < 1e12 {
+            let mut a = jtj.clone();
+            for k in 0..a.nrows() {
+                a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
+            }
+            let Some(step) = a.lu().solve(&(-&g)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let q = &p + &step;
+            match cost(&q) {
+                Some(rq) if rq.norm_squared() < r.norm_squared() => {
+                    let small =
+                        (0..step.len()).all(|k| step[k].abs() < 1e-10 * model.scale(k) * 100.0);
+                    p = q;
+                    r = rq;
+                    lambda = (lambda / 10.0).max(1e-12);
+                    improved = !small;
+                    break;
+                }
+                _ => lambda *= 10.0,
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    Ok((p, r, iterations))
 }
 
 fn param_name(p: Param) -> &'static str {

@@ -125,7 +125,7 @@ fn text_report(r: &Report) -> String {
         f.rms_before,
         f.rms_after
     );
-    s += "encoder     parameter          nominal          fitted           sigma\n";
+    s += "encoder     parameter          nominal          fitted           sigma      one run left out\n";
     for p in &f.params {
         let (unit, k) = match p.param {
             Param::Lever => ("mm", 1e3),
@@ -138,8 +138,12 @@ fn text_report(r: &Report) -> String {
             Param::Direction => "direction",
             Param::Scale => "travel/count",
         };
+        let repeat = match (p.repeat_min, p.repeat_max) {
+            (Some(lo), Some(hi)) => format!("{:.5} to {:.5}", lo * k, hi * k),
+            _ => "-".to_string(),
+        };
         s += &format!(
-            "{:<11} {:<14} {:>12.5} {unit:<3} {:>12.5} {unit:<3} {:>10.5} {unit}\n",
+            "{:<11} {:<14} {:>12.5} {unit:<3} {:>12.5} {unit:<3} {:>10.5} {unit:<3}  {repeat}\n",
             p.encoder,
             what,
             p.before * k,
@@ -148,6 +152,12 @@ fn text_report(r: &Report) -> String {
         );
     }
     s += &format!("conditioning    {:.3e} (largest over smallest singular value, each parameter in its own scale)\n", f.condition);
+    if f.subsets > 0 {
+        s += &format!(
+            "repeatability   {} fits with one run left out, in {:.3} s (the right-hand column)\n",
+            f.subsets, f.subsets_seconds
+        );
+    }
     if f.unresolved.is_empty() {
         s += "unresolved      none: the runs tell every parameter apart\n";
     } else {
