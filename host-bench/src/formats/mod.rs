@@ -8,6 +8,7 @@ pub mod bounded_file;
 pub mod drive_geometry;
 pub mod odometry_layout;
 pub mod robot;
+pub mod run_robot;
 pub mod scenario;
 pub mod tickstream;
 pub mod toml_file;
