@@ -399,3 +399,107 @@ fn record_stopped_by_signals_at_random_moments_leaves_one_whole_set() {
         assert!(kept > 0 && replaced > 0, "kept {kept}, replaced {replaced}");
     }
 }
+
+/// A differential drive (seed 002's chassis, motors and tracking) with two measuring wheels
+/// of its own on the drive axle, 6 cm apart, 500 counts a turn: short squares are still many
+/// wheel bases long, and coarse counts let a recording keep every edge at a brisk pace. As
+/// built, the right measuring wheel is 1 % larger and the two are 3 % further apart.
+fn small_axle_robot(dir: &Path, as_built: bool) -> std::path::PathBuf {
+    let seed002 = std::fs::read_to_string(data("seed002.toml")).unwrap();
+    let chassis = &seed002[seed002.find("[[drive_wheels]]").unwrap()..];
+    let (half, right_d) = if as_built {
+        (0.03 * 1.03, 0.060 * 2.0 / (1.0 / 1.01 + 1.0))
+    } else {
+        (0.03, 0.060)
+    };
+    let left_d = right_d / if as_built { 1.01 } else { 1.0 };
+    let text = format!(
+        r#"format = "omnibench robot v1"
+name = "small-axle"
+[[encoders]]
+name = "left"
+x_m = 0.0
+y_m = {half}
+direction_deg = 0.0
+counts_per_rev = 500
+wheel_diameter_m = {left_d}
+[[encoders]]
+name = "right"
+x_m = 0.0
+y_m = -{half}
+direction_deg = 0.0
+counts_per_rev = 500
+wheel_diameter_m = {right_d}
+{chassis}"#
+    );
+    let path = dir.join(if as_built {
+        "as-built.toml"
+    } else {
+        "nominal.toml"
+    });
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// UMBmark on the bench, end to end as a user runs it: a virtual board whose master drives a
+/// robot as really built (right measuring wheel 1 % larger, the two 3 % further apart), and
+/// `calibrate --drive-squares` against it, told the nominal robot. It drives a square each
+/// way through the master, records them, takes the board's truth as their measured end
+/// poses, calibrates, writes the corrected robot and loads it into the slave.
+#[test]
+fn calibrate_drives_umbmarks_squares_on_the_bench_and_uploads_the_corrected_robot() {
+    let _alone = REAL_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let runs = dir.path().join("squares");
+    let fitted = dir.path().join("fitted.toml");
+    let nominal = small_axle_robot(dir.path(), false);
+    let truly = small_axle_robot(dir.path(), true);
+    let (nominal, truly) = (nominal.to_str().unwrap(), truly.to_str().unwrap());
+    let board =
+        VirtualBoard::start(&["--robot", nominal, "--true-robot", truly, "--master-drives"]);
+    let out = Command::new(BIN)
+        .args(["calibrate", "--robot", nominal, "--port", &board.port])
+        .args(["--side", "0.7", "--each", "1", "--upload", "--json"])
+        .arg("--drive-squares")
+        .arg(&runs)
+        .arg("--out")
+        .arg(&fitted)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (e_d, e_b) = (
+        v["umbmark"]["e_d"].as_f64().unwrap(),
+        v["umbmark"]["e_b"].as_f64().unwrap(),
+    );
+    assert!(
+        (e_d - 1.01).abs() < 3e-3 && (e_b - 1.03).abs() < 5e-3,
+        "{v}"
+    );
+    // Both squares driven whole, every edge kept, from the board's truth (nothing asked).
+    let squares = v["bench"]["squares"].as_array().unwrap();
+    assert_eq!(squares.len(), 2, "{v}");
+    for s in squares {
+        let r = &s["recording"];
+        assert_eq!(r["stopped_by"], "motion over", "{v}");
+        assert_eq!(r["lost_events"], 0, "{v}");
+        assert!(
+            s["measured"].is_null() && r["truth_rows"].as_u64().unwrap() > 100,
+            "{v}"
+        );
+        assert!(runs.join(s["file"].as_str().unwrap()).exists());
+    }
+    // The squares, replayed on the corrected robot, close far better than on the nominal.
+    let before = v["umbmark"]["e_max_syst_m"].as_f64().unwrap();
+    let after = v["e_max_syst_after_m"].as_f64().unwrap();
+    assert!(after < before / 5.0, "{v}");
+    // The slave runs the corrected robot: its fingerprint is the written file's.
+    let written = host_bench::formats::robot::Robot::load(&fitted).unwrap();
+    let fp = firmware_slave::robot_wire::layout_fingerprint(&written.odometry_layout().unwrap());
+    assert_eq!(v["uploaded_fingerprint"], format!("{fp:08x}"), "{v}");
+}

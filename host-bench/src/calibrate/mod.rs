@@ -5,6 +5,7 @@
 //! wheels. The runs ([`runs`]) are tick streams replayed on the nominal robot, or emulated runs
 //! whose slave ran it.
 
+pub mod bench;
 pub mod fit;
 pub mod runs;
 pub mod umbmark;

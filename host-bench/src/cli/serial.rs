@@ -33,7 +33,7 @@ pub struct PortArgs {
 }
 
 impl PortArgs {
-    fn open(&self) -> Result<Link> {
+    pub fn open(&self) -> Result<Link> {
         let bench = match &self.bench {
             Some(p) => Some(bench_file::load(p)?),
             None if Path::new("bench.toml").exists() => {
@@ -423,6 +423,13 @@ pub struct VirtualBoardArgs {
     /// carriage as the slave's.
     #[arg(long, value_name = "FILE")]
     pub true_robot: Option<PathBuf>,
+    /// The master drives the robot: its motor outputs turn the wheels of the robot's drive
+    /// (--true-robot's, else --robot's, else seed 004's), as on a robot on the floor, and the
+    /// robot stands still until the host drives it (`calibrate --drive-squares` does; the
+    /// host sends the drive first). Without it the board pushes the robot round its own
+    /// square course.
+    #[arg(long)]
+    pub master_drives: bool,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -469,6 +476,20 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             );
         }
         opts.true_layout = Some(truly);
+    }
+    if a.master_drives {
+        let model = match a.true_robot.as_ref().or(a.robot.as_ref()) {
+            Some(path) => {
+                let robot = host_bench::formats::robot::Robot::load(path)?;
+                host_bench::formats::run_robot::robot_model(robot)
+                    .with_context(|| format!("--master-drives: the drive of {}", path.display()))?
+            }
+            None => host_bench::formats::run_robot::power_on_robot(),
+        };
+        opts.master_drives = Some(virtual_board::Drivetrain {
+            drive: model.drive,
+            motor: model.motor,
+        });
     }
     if let Some(v) = a.course_speed {
         if !(v > 0.0 && v <= 1.0) {
@@ -549,15 +570,19 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     let truly = a.true_robot.as_ref().map_or(String::new(), |p| {
         format!("; its wheels really as {}", p.display())
     });
-    eprintln!(
-        "virtual board (robot {robot_name}{truly}, driven round a {} m square at {:.3} m/s) \
-         serving; Ctrl-C ends it",
-        opts.course_side, opts.course_speed
-    );
+    let driven = if opts.master_drives.is_some() {
+        "driven by the master".to_string()
+    } else {
+        format!(
+            "driven round a {} m square at {:.3} m/s",
+            opts.course_side, opts.course_speed
+        )
+    };
+    eprintln!("virtual board (robot {robot_name}{truly}, {driven}) serving; Ctrl-C ends it");
     virtual_board::serve(pty, &opts, &|| false)
 }
 
-fn progress_bar(template: &str) -> indicatif::ProgressBar {
+pub fn progress_bar(template: &str) -> indicatif::ProgressBar {
     // indicatif draws only on a terminal: piped output stays clean.
     indicatif::ProgressBar::new(0).with_style(
         indicatif::ProgressStyle::with_template(template)

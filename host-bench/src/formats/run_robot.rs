@@ -26,7 +26,7 @@ pub fn robot_model(robot: Robot) -> Result<RobotModel> {
 }
 
 /// The boards' power-on robot, seed 004's.
-pub(super) fn power_on_robot() -> RobotModel {
+pub fn power_on_robot() -> RobotModel {
     RobotModel {
         name: POWER_ON_ROBOT.to_string(),
         drive: firmware_master::drive_setup::SEED_004_DRIVE,

@@ -4,6 +4,7 @@
 //! checked bit for bit against the host's, [`expected`]) and [`record`] (real encoders into a
 //! tick stream).
 
+pub mod drive;
 pub mod expected;
 pub mod link;
 pub mod play;

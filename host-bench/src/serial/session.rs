@@ -5,7 +5,7 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
-use protocol::serial::{BoardInfo, HostToMaster, MasterToHost, RejectReason};
+use protocol::serial::{BoardInfo, DriveGeometry, HostToMaster, MasterToHost, RejectReason};
 use protocol::spi::{OdometryAlgorithm, Reports, SensorSource, SlaveCommand};
 use protocol::PROTOCOL_VERSION;
 use robot_math::odometry::{Layout, Method};
@@ -147,6 +147,51 @@ pub fn load_robot(link: &mut Link, layout: &Layout) -> Result<u32> {
         |i| i.robot == fp,
     )?;
     Ok(fp)
+}
+
+/// Send the robot's drive to the master (wheel layout, limits, tracking gains): one master
+/// image drives every robot. The protocol has no echo of it, so the master's telemetry tells:
+/// sent while nothing else is on its way, it arrived when the master's count of accepted host
+/// frames rose and its count of refused ones did not; otherwise it goes again. A drive the
+/// master refuses is an error.
+pub fn set_drive(link: &mut Link, drive: &DriveGeometry) -> Result<()> {
+    for _ in 0..5 {
+        let before = next_counters(link, Instant::now())?;
+        link.send(&HostToMaster::SetDrive(*drive))?;
+        // Telemetry made once the frame has surely landed (a few ms at 115200 baud).
+        let after = next_counters(link, Instant::now() + link.wait(Duration::from_millis(60)))?;
+        if after.0 != before.0 && after.1 == before.1 {
+            return Ok(());
+        }
+    }
+    bail!(
+        "the master on {} did not take the robot's drive (sent 5 times; its frame counters \
+         did not show it arrived whole)",
+        link.name()
+    )
+}
+
+/// The master's `(accepted, refused)` host-frame counts in the first telemetry received at
+/// `after` or later; a refused drive is an error.
+fn next_counters(link: &mut Link, after: Instant) -> Result<(u32, u32)> {
+    let deadline = after + link.wait(ANSWER_TIMEOUT);
+    while Instant::now() < deadline {
+        match link.recv(Duration::from_millis(20))? {
+            Some(MasterToHost::Telemetry(t)) if Instant::now() >= after => {
+                return Ok((t.counters.serial_ok, t.counters.serial_rejected))
+            }
+            Some(MasterToHost::Rejected(RejectReason::InvalidDrive)) => bail!(
+                "the master refused the robot's drive (InvalidDrive: wheels not apart, the \
+                 tracked point on the axle, or a limit or gain not positive)"
+            ),
+            _ => {}
+        }
+    }
+    bail!(
+        "no telemetry from the master on {} within {} s",
+        link.name(),
+        link.wait(ANSWER_TIMEOUT).as_secs()
+    )
 }
 
 pub fn wire_algorithm(m: Method) -> OdometryAlgorithm {

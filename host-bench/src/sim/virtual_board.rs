@@ -8,8 +8,10 @@
 //! ```
 //! The simulated robot is driven round a 1 m square course by the virtual board itself, as if
 //! pushed by hand (the master gets no goal, and its motor outputs go nowhere), so `record`
-//! has something to record. Only a simulated board can send the truth; it does, as
-//! [`MasterToHost::SimTruth`] frames between the master's own.
+//! has something to record. Or, with [`Options::master_drives`], it stands still until the
+//! host drives it through the master, whose motor outputs then turn its wheels, as on a
+//! robot on the floor (`calibrate --port` drives its squares so). Only a simulated board can
+//! send the truth; it does, as [`MasterToHost::SimTruth`] frames between the master's own.
 //!
 //! The robot is the slave's layout (`Options::slave.layout()`): seed 004's carriage by default,
 //! as a freshly flashed slave; or a robot file's two encoders, as a slave that was sent that
@@ -76,6 +78,17 @@ pub struct Options {
     /// The robot's measuring sensors as they really are, when they are not as the slave is
     /// told (`--true-robot`): the simulated wheels follow these. None: the slave's own.
     pub true_layout: Option<Layout>,
+    /// The robot's drive and motors, when the master drives it (`--master-drives`): the
+    /// wheels follow the master's duties, and the host must send this drive (`SetDrive`)
+    /// first, as to real boards. None: the board's own course pushes it round.
+    pub master_drives: Option<Drivetrain>,
+}
+
+/// A robot's driven wheels and their motors, as they really are.
+#[derive(Clone, Copy, Debug)]
+pub struct Drivetrain {
+    pub drive: protocol::serial::DriveGeometry,
+    pub motor: DcMotor,
 }
 
 impl Default for Options {
@@ -97,6 +110,7 @@ impl Options {
             course_speed,
             edges: crate::sim::generate::EdgeErrors::IDEAL,
             true_layout: None,
+            master_drives: None,
         }
     }
 }
@@ -234,16 +248,42 @@ pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
 /// Serve on `pty` until `stop` says so (forever for the CLI).
 pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
-    let drive = omni_drive(&opts.master)?;
     let sensors =
         MeasuringSensors::from_layout(opts.true_layout.as_ref().unwrap_or(opts.slave.layout()))
             .map_err(|e| anyhow::anyhow!("the virtual board cannot simulate this robot: {e}"))?;
-    let plant_cfg = PlantConfig {
-        drive: DriveKinematics::Omni3(drive),
-        // The course below drives open loop: no speed loops, no motor encoders.
-        motor: COURSE_MOTOR,
-        motor_metres_per_count: None,
-        sensors,
+    // Pushed round the course open loop (no speed loops, no motor encoders), or driven by the
+    // master through the robot's own drive and motors.
+    let (plant_cfg, course) = match &opts.master_drives {
+        Some(d) => {
+            let setup = DriveSetup::from_geometry(&d.drive)
+                .context("the robot's drive geometry is impossible")?;
+            let cfg = PlantConfig {
+                drive: setup.kinematics,
+                motor: d.motor,
+                motor_metres_per_count: setup.metres_per_motor_count,
+                sensors,
+            };
+            (cfg, None)
+        }
+        None => {
+            let drive = omni_drive(&opts.master)?;
+            let side = opts.course_side;
+            let course = Course {
+                corners: [(0.0, side), (side, side), (side, 0.0), (0.0, 0.0)],
+                next: 0,
+                speed: opts.course_speed,
+                steering: Steering::for_sensors(&sensors),
+                drive,
+                speed_at_full_duty: COURSE_MOTOR.steady_speed(1.0),
+            };
+            let cfg = PlantConfig {
+                drive: DriveKinematics::Omni3(drive),
+                motor: COURSE_MOTOR,
+                motor_metres_per_count: None,
+                sensors,
+            };
+            (cfg, Some(course))
+        }
     };
     let per_count = plant_cfg.sensors.metres_per_count();
     let mut plant = Plant::new(
@@ -258,15 +298,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         }));
     }
     let plant: SharedPlant = Rc::new(RefCell::new(plant));
-    let side = opts.course_side;
-    let mut course = Course {
-        corners: [(0.0, side), (side, side), (side, 0.0), (0.0, 0.0)],
-        next: 0,
-        speed: opts.course_speed,
-        steering: Steering::for_sensors(&sensors),
-        drive,
-        speed_at_full_duty: COURSE_MOTOR.steady_speed(1.0),
-    };
+    let mut course = course;
     let slave_shared = SlaveShared::new();
     let master_shared = MasterShared::new();
     let wire = Rc::new(RefCell::new(SpiWire::new(opts.faults.spi, opts.seed)));
@@ -288,30 +320,48 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
             .map(|s| Instant::from_micros((s * 1e6) as u64)),
         None,
     ));
-    sim.spawn(async {
-        firmware_master::run(
-            EmuMasterBus {
-                wire: wire.clone(),
-                transfer_time: spi_transfer_time(2_250_000),
-            },
-            UartRx(to_master.clone()),
-            UartTx {
-                line: to_host.clone(),
-                byte_time,
-                noise: None,
-            },
-            Unconnected,
-            Unconnected,
+    let bus = || EmuMasterBus {
+        wire: wire.clone(),
+        transfer_time: spi_transfer_time(2_250_000),
+    };
+    let uart_tx = || UartTx {
+        line: to_host.clone(),
+        byte_time,
+        noise: None,
+    };
+    // The master's motor outputs: to the wheels, or nowhere (the course pushes the robot).
+    if opts.master_drives.is_some() {
+        let motors = EmuMotors {
+            plant: plant.clone(),
+            source: DutySource::Master,
+            steps: 0,
+        };
+        let (bus, rx, tx) = (bus(), UartRx(to_master.clone()), uart_tx());
+        let (shaft, shared, config) = (
+            EmuMotorEncoders(plant.clone()),
             &master_shared,
             &opts.master,
-        )
-        .await;
-    });
+        );
+        sim.spawn(async move {
+            firmware_master::run(bus, rx, tx, motors, shaft, shared, config).await;
+        });
+    } else {
+        let (bus, rx, tx) = (bus(), UartRx(to_master.clone()), uart_tx());
+        let (shared, config) = (&master_shared, &opts.master);
+        sim.spawn(async move {
+            firmware_master::run(bus, rx, tx, Unconnected, Unconnected, shared, config).await;
+        });
+    }
 
     let wall = WallInstant::now();
     let plant_step = Duration::from_micros(100);
     let course_every = Duration::from_millis(10);
-    let mut next_course = Instant::from_ticks(0);
+    // Never, when the master drives.
+    let mut next_course = if course.is_some() {
+        Instant::from_ticks(0)
+    } else {
+        Instant::MAX
+    };
     let mut next_truth = Instant::from_ticks(0);
     let mut rewrite = FrameDecoder::new();
     let mut buf = [0u8; 4096];
@@ -321,7 +371,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         let target = Instant::from_micros(wall.elapsed().as_micros() as u64);
         while sim.now() < target {
             let now = sim.now();
-            if now >= next_course {
+            if let Some(course) = course.as_mut().filter(|_| now >= next_course) {
                 let body = plant.borrow().body();
                 let d = course.duty(body);
                 plant.borrow_mut().set_duty(d);

@@ -41,7 +41,7 @@ pub(super) fn run(
     robot: &Robot,
     measured: &BTreeMap<String, Pose2>,
     all: &[RunEnd],
-) -> Result<()> {
+) -> Result<super::Calibrated> {
     let noise = super::noise(a)?;
     host_bench::calibrate::check_wiring(robot, all)?;
     let binned: Vec<BinnedRun> = (all.iter())
@@ -98,7 +98,6 @@ pub(super) fn run(
             heading_after_rad: heading(&again),
         });
     }
-    super::write_out(a, &fitted_text)?;
     let report = Report {
         robot: robot.name.clone(),
         method: "fit",
@@ -106,12 +105,11 @@ pub(super) fn run(
         runs: errors,
         out: a.out.as_ref().map(|p| p.display().to_string()),
     };
-    if a.json {
-        println!("{}", serde_json::to_string(&report)?);
-    } else {
-        print!("{}", text_report(&report));
-    }
-    Ok(())
+    Ok(super::Calibrated {
+        json: serde_json::to_value(&report)?,
+        text: text_report(&report),
+        fitted: fitted_text,
+    })
 }
 
 fn text_report(r: &Report) -> String {

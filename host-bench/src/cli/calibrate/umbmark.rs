@@ -20,7 +20,12 @@ struct Report {
     out: Option<String>,
 }
 
-pub(super) fn run(a: &CalibrateArgs, text: &str, robot: &Robot, all: &[RunEnd]) -> Result<()> {
+pub(super) fn run(
+    a: &CalibrateArgs,
+    text: &str,
+    robot: &Robot,
+    all: &[RunEnd],
+) -> Result<super::Calibrated> {
     let c = calibrate::calibrate_umbmark(robot, all)?;
     let u = &c.umbmark;
     let note = [
@@ -52,19 +57,17 @@ pub(super) fn run(a: &CalibrateArgs, text: &str, robot: &Robot, all: &[RunEnd]) 
         .then(|| umbmark::umbmark(&runs_after, pair.base_m).ok())
         .flatten()
         .map(|u| u.e_max_syst_m);
-    super::write_out(a, &fitted_text)?;
     let report = Report {
         calibration: c,
         runs_after,
         e_max_syst_after_m,
         out: a.out.as_ref().map(|p| p.display().to_string()),
     };
-    if a.json {
-        println!("{}", serde_json::to_string(&report)?);
-    } else {
-        print!("{}", text_report(&report));
-    }
-    Ok(())
+    Ok(super::Calibrated {
+        json: serde_json::to_value(&report)?,
+        text: text_report(&report),
+        fitted: fitted_text,
+    })
 }
 
 fn text_report(r: &Report) -> String {

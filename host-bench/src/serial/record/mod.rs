@@ -80,7 +80,29 @@ const SILENCE: Duration = Duration::from_secs(1);
 /// The seed 004 robot file, for recordings of the slave's power-on robot.
 const SEED_004_TOML: &str = include_str!("../../../../robots/seed004.toml");
 
+/// Something that moves the robot while it is recorded (`calibrate --port` drives squares
+/// through the master): told where the recording starts, then called at every turn of the
+/// recording's loop.
+pub trait Mover {
+    /// The recording starts now, the board's odometry at `start` (the truth's pose on a
+    /// simulated board, the origin on a real one).
+    fn start(&mut self, link: &mut Link, start: protocol::Pose) -> Result<()>;
+    /// One turn of the loop, with the frame just received, if any: `Ok(true)` once the
+    /// motion is over and the recording may end; an error ends the recording early.
+    fn step(&mut self, link: &mut Link, msg: Option<&MasterToHost>) -> Result<bool>;
+}
+
 pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
+    record_moving(link, req, None)
+}
+
+/// [`record`], with `mover` moving the robot meanwhile; the recording ends when its motion
+/// is over ("motion over"), or early with the mover's error.
+pub fn record_moving(
+    link: &mut Link,
+    req: &RecordRequest,
+    mut mover: Option<&mut dyn Mover>,
+) -> Result<RecordOutcome> {
     // Where it all goes, checked before a second is recorded: a recording that cannot be
     // written at the end is a recording lost.
     let (robot_out, board_out) = companion_files(req.out);
@@ -147,6 +169,9 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
         },
         start,
     )?;
+    if let Some(m) = mover.as_deref_mut() {
+        m.start(link, start)?;
+    }
 
     let stop = Arc::new(AtomicBool::new(false));
     let _own_ctrl_c = crate::formats::atomic::OwnCtrlC::take();
@@ -196,8 +221,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
             bar.tick();
         }
         let msg = match link.recv(Duration::from_millis(10)) {
-            Ok(Some(msg)) => msg,
-            Ok(None) => continue,
+            Ok(msg) => msg,
             Err(e) => {
                 break Err(Early::new(
                     "port failure",
@@ -205,6 +229,14 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
                 ))
             }
         };
+        if let Some(m) = mover.as_deref_mut() {
+            match m.step(link, msg.as_ref()) {
+                Ok(false) => {}
+                Ok(true) => break Ok("motion over"),
+                Err(e) => break Err(Early::new("motion", format!("{e:#}"))),
+            }
+        }
+        let Some(msg) = msg else { continue };
         match msg {
             MasterToHost::Reports(frame) => {
                 rx.on_data(&frame);
@@ -285,7 +317,7 @@ pub fn record(link: &mut Link, req: &RecordRequest) -> Result<RecordOutcome> {
 }
 
 /// The newest true pose a simulated board sends within 50 ms (none from a real board).
-fn latest_truth(link: &mut Link) -> Result<Option<protocol::Pose>> {
+pub fn latest_truth(link: &mut Link) -> Result<Option<protocol::Pose>> {
     let until = Instant::now() + Duration::from_millis(50);
     let mut latest = None;
     while Instant::now() < until {

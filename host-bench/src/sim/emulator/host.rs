@@ -328,7 +328,8 @@ fn secs(t: Instant) -> f64 {
     t.as_micros() as f64 * 1e-6
 }
 
-fn track_point(s: Sample) -> TrackPoint {
+/// A reference sample as the master takes it.
+pub fn track_point(s: Sample) -> TrackPoint {
     let um = protocol::metres_to_um;
     TrackPoint {
         position: Point::from_metres(s.position.0, s.position.1),

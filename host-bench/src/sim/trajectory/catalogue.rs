@@ -293,17 +293,25 @@ fn seed000_bezier(heading_change: f64) -> Box<dyn Trajectory> {
 /// Four sides of [`UMBMARK_SIDE_M`], each followed by a 90° turn in place (left for
 /// counter-clockwise), ending where it started with the heading one turn further.
 fn umbmark(ccw: bool) -> Box<dyn Trajectory> {
+    umbmark_square(UMBMARK_SIDE_M, CRUISE_SPEED_M_S, TURN_RATE_RAD_S, ccw)
+}
+
+/// UMBmark's square of any size, for the bench (`calibrate --port`): four sides of `side_m`
+/// at up to `speed` m/s, each followed by a 90° turn in place at up to `turn_rate` rad/s
+/// (left for counter-clockwise), from the origin facing +x, back to it.
+pub fn umbmark_square(side_m: f64, speed: f64, turn_rate: f64, ccw: bool) -> Box<dyn Trajectory> {
     let turn = if ccw { FRAC_PI_2 } else { -FRAC_PI_2 };
     let mut parts: Vec<Box<dyn Trajectory>> = Vec::new();
     let mut at = Pose2::new(0.0, 0.0, 0.0);
     for _ in 0..4 {
-        let side = PathMotion::cruise(
-            Line::new(at.x, at.y, at.theta, UMBMARK_SIDE_M),
+        let side = PathMotion::at_speed(
+            Line::new(at.x, at.y, at.theta, side_m),
             Heading::Tangent,
+            speed,
         );
         at = side.pose(side.duration());
         parts.push(Box::new(side));
-        let spin = Turn::new(at, turn);
+        let spin = Turn::at_rate(at, turn, turn_rate);
         at = spin.pose(spin.duration());
         parts.push(Box::new(spin));
     }

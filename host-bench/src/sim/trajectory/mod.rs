@@ -64,7 +64,7 @@ use std::f64::consts::FRAC_PI_2;
 
 use robot_math::se2::{Pose2, Twist};
 
-pub use catalogue::{build, catalogue, is_body_path, named};
+pub use catalogue::{build, catalogue, is_body_path, named, umbmark_square};
 
 mod catalogue;
 mod motion;

@@ -4,7 +4,7 @@ use robot_math::se2::{Pose2, Twist};
 
 use super::path::Path;
 use super::profile::Profile;
-use super::{Trajectory, CRUISE_SPEED_M_S, RAMP_S, TURN_RAMP_S, TURN_RATE_RAD_S};
+use super::{Trajectory, CRUISE_SPEED_M_S, RAMP_S, TURN_RAMP_S};
 
 /// How the heading moves along a path.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -24,7 +24,12 @@ pub(super) struct PathMotion<P> {
 
 impl<P: Path> PathMotion<P> {
     pub(super) fn cruise(path: P, heading: Heading) -> PathMotion<P> {
-        let profile = Profile::new(path.length(), CRUISE_SPEED_M_S, RAMP_S);
+        Self::at_speed(path, heading, CRUISE_SPEED_M_S)
+    }
+
+    /// From rest to `speed` in [`RAMP_S`], along the path, and to rest again.
+    pub(super) fn at_speed(path: P, heading: Heading, speed: f64) -> PathMotion<P> {
+        let profile = Profile::new(path.length(), speed, RAMP_S);
         PathMotion {
             path,
             profile,
@@ -79,11 +84,12 @@ pub(super) struct Turn {
 }
 
 impl Turn {
-    pub(super) fn new(start: Pose2, delta: f64) -> Turn {
+    /// Turning by `delta` at up to `rate` rad/s.
+    pub(super) fn at_rate(start: Pose2, delta: f64, rate: f64) -> Turn {
         Turn {
             start,
             sign: delta.signum(),
-            profile: Profile::new(delta.abs(), TURN_RATE_RAD_S, TURN_RAMP_S),
+            profile: Profile::new(delta.abs(), rate, TURN_RAMP_S),
         }
     }
 }
