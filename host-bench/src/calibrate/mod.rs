@@ -36,13 +36,6 @@ pub fn wheel_pair(robot: &Robot) -> Result<WheelPair> {
             robot.encoders.len()
         );
     };
-    if robot.carriage.is_some() {
-        bail!(
-            "robot {}: its wheels are on a swivel carriage, whose squares UMBmark does not \
-             model (the carriage turns behind the body at each corner)",
-            robot.name
-        );
-    }
     let (wa, wb) = (a.wheel, b.wheel);
     if (wa.ux * wb.uy - wa.uy * wb.ux).abs() > 1e-9 || wa.ux * wb.ux + wa.uy * wb.uy < 0.0 {
         bail!(
@@ -102,7 +95,11 @@ pub fn square_run(robot: &Robot, pair: WheelPair, run: &RunEnd) -> Result<Square
         }
     }
     let travel = (k(l) * n(l) as f64 + k(r) * n(r) as f64) / 2.0;
-    let turned = (k(r) * n(r) as f64 - k(l) * n(l) as f64) / pair.base_m;
+    // On a carriage the wheels turn the carriage: the body turned that less the swivel's turn.
+    let swivelled = run
+        .swivel
+        .map_or(0.0, |(at_start, at_end)| at_end - at_start);
+    let turned = (k(r) * n(r) as f64 - k(l) * n(l) as f64) / pair.base_m - swivelled;
     let turns = turned / std::f64::consts::TAU;
     if !(0.8..1.2).contains(&turns.abs()) || travel <= 0.0 {
         bail!(
@@ -141,21 +138,22 @@ pub struct Repeatability {
     pub e_b_max: f64,
 }
 
-/// UMBmark again with each run left out in turn; none when no run can be spared.
-fn leave_one_out(squares: &[SquareRun], base: f64) -> Option<Repeatability> {
-    let fits: Vec<Umbmark> = (0..squares.len())
+/// UMBmark again with each of `n` runs left out in turn (`again` given the runs kept);
+/// none when no run can be spared.
+fn leave_one_out(
+    n: usize,
+    again: impl Fn(&[usize]) -> Result<(f64, f64)>,
+) -> Option<Repeatability> {
+    let fits: Vec<(f64, f64)> = (0..n)
         .filter_map(|k| {
-            let rest: Vec<SquareRun> = (squares.iter().enumerate())
-                .filter(|&(i, _)| i != k)
-                .map(|(_, r)| r.clone())
-                .collect();
-            umbmark::umbmark(&rest, base).ok()
+            let rest: Vec<usize> = (0..n).filter(|&i| i != k).collect();
+            again(&rest).ok()
         })
         .collect();
-    let span = |f: fn(&Umbmark) -> f64| {
+    let span = |f: fn(&(f64, f64)) -> f64| {
         (fits.iter().map(f)).fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)))
     };
-    let ((e_d_min, e_d_max), (e_b_min, e_b_max)) = (span(|u| u.e_d), span(|u| u.e_b));
+    let ((e_d_min, e_d_max), (e_b_min, e_b_max)) = (span(|u| u.0), span(|u| u.1));
     (!fits.is_empty()).then_some(Repeatability {
         subsets: fits.len(),
         e_d_min,
@@ -189,15 +187,35 @@ pub fn check_wiring(robot: &Robot, runs: &[RunEnd]) -> Result<()> {
     Ok(())
 }
 
-/// UMBmark on `runs` of `robot`, and its encoders corrected.
-pub fn calibrate_umbmark(robot: &Robot, runs: &[RunEnd]) -> Result<UmbmarkCalibration> {
+/// UMBmark on `runs` of `robot`, and its encoders corrected. On a swivel carriage the two
+/// factors are refined on the runs' counts ([`fit::umbmark_on_carriage`], with `noise` the end
+/// poses' measuring noise), not on UMBmark's square.
+pub fn calibrate_umbmark(
+    robot: &Robot,
+    runs: &[RunEnd],
+    noise: fit::Noise,
+) -> Result<UmbmarkCalibration> {
     check_wiring(robot, runs)?;
     let pair = wheel_pair(robot)?;
     let squares = (runs.iter())
         .map(|r| square_run(robot, pair, r))
         .collect::<Result<Vec<_>>>()?;
-    let u = umbmark::umbmark(&squares, pair.base_m)?;
+    let mut u = umbmark::umbmark(&squares, pair.base_m)?;
     let before = geometry(robot);
+    let repeatability = if robot.carriage.is_some() {
+        let binned = runs::binned(runs)?;
+        let on = |keep: &[usize]| {
+            let kept: Vec<fit::BinnedRun> = keep.iter().map(|&i| binned[i].clone()).collect();
+            fit::umbmark_on_carriage(robot, &before, &kept, noise)
+        };
+        (u.e_d, u.e_b) = on(&(0..binned.len()).collect::<Vec<_>>())?;
+        leave_one_out(binned.len(), on)
+    } else {
+        leave_one_out(squares.len(), |keep| {
+            let kept: Vec<SquareRun> = keep.iter().map(|&i| squares[i].clone()).collect();
+            umbmark::umbmark(&kept, pair.base_m).map(|u| (u.e_d, u.e_b))
+        })
+    };
     let mut after = before.clone();
     let (left, right, base) = umbmark::corrected(
         &u,
@@ -220,7 +238,7 @@ pub fn calibrate_umbmark(robot: &Robot, runs: &[RunEnd]) -> Result<UmbmarkCalibr
         method: "umbmark",
         pair,
         umbmark: u,
-        repeatability: leave_one_out(&squares, pair.base_m),
+        repeatability,
         runs: squares,
         before,
         after,

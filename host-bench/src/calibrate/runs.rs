@@ -41,6 +41,9 @@ pub struct RunEnd {
     /// The tick stream it came from, to be replayed again on a corrected robot (none for an
     /// emulated run: drive it again instead).
     pub stream: Option<PathBuf>,
+    /// A carriage's swivel as its absolute encoder read it at the start and at the end,
+    /// radians (none for body-fixed encoders, and for an emulated run).
+    pub swivel: Option<(f64, f64)>,
 }
 
 impl RunEnd {
@@ -196,6 +199,8 @@ pub fn stream_run(path: &Path, robot: &Robot, measured: Option<Pose2>) -> Result
         }
     }
     let bins = bins(&stream.events, n, start_t, end_t);
+    let swivel = swivel_readings(robot, &stream.events, start_t, end_t)
+        .with_context(|| path.display().to_string())?;
     let agreement = super::wiring::agreement(robot, &stream.events);
     let score = replay::replay(robot, &stream, "exact", Mode::Timestamps)
         .with_context(|| format!("{}: replaying it on robot {}", path.display(), robot.name))?;
@@ -210,13 +215,77 @@ pub fn stream_run(path: &Path, robot: &Robot, measured: Option<Pose2>) -> Result
         bins,
         agreement,
         stream: Some(path.to_path_buf()),
+        swivel,
     })
+}
+
+/// The runs as the fit reads them: their counts binned, which only a tick stream keeps.
+pub fn binned(runs: &[RunEnd]) -> Result<Vec<super::fit::BinnedRun>> {
+    (runs.iter())
+        .map(|r| {
+            if r.stream.is_none() {
+                bail!(
+                    "{}: an emulated run keeps no ticks, and this calibration dead-reckons the \
+                     runs' counts again: record it (virtual-board and record, or generate)",
+                    r.name
+                );
+            }
+            Ok(super::fit::BinnedRun {
+                name: r.name.clone(),
+                start: r.start,
+                measured_end: r.measured_end,
+                bins: r.bins.clone(),
+                swivel: r.swivel,
+            })
+        })
+        .collect()
+}
+
+/// A carriage's swivel angle as its absolute encoder read it last at or before `start` (or
+/// first, when it was first read later) and last at or before `end`, radians; none without a
+/// carriage.
+fn swivel_readings(
+    robot: &Robot,
+    events: &[Event],
+    start: u64,
+    end: u64,
+) -> Result<Option<(f64, f64)>> {
+    let layout = robot.odometry_layout()?;
+    let (Some(geom), Some(abs)) = (layout.carriage_geometry(), layout.abs()) else {
+        return Ok(None);
+    };
+    let (mut first, mut at_start, mut at_end) = (None, None, None);
+    for e in events {
+        let Event::Abs {
+            t_ns,
+            encoder,
+            code,
+        } = *e
+        else {
+            continue;
+        };
+        let Some(code) = robot.abs_reading(encoder, code, t_ns)? else {
+            continue;
+        };
+        let angle = geom.swivel_angle(abs.decode(code));
+        first = first.or(Some(angle));
+        if t_ns <= start {
+            at_start = Some(angle);
+        }
+        if t_ns <= end {
+            at_end = Some(angle);
+        }
+    }
+    match (at_start.or(first), at_end) {
+        (Some(a), Some(b)) => Ok(Some((a, b))),
+        _ => bail!("no reading of the carriage's swivel (its absolute encoder) by the run's end"),
+    }
 }
 
 /// A bin of a run's counts ends after this long ...
 pub const BIN_NS: u64 = 10_000_000;
 /// ... or once an encoder has counted this many.
-pub const BIN_COUNTS: i32 = 16;
+pub const BIN_COUNTS: i32 = 64;
 
 /// The ticks of `events` (sorted) in `(from, to]` as count changes in bins.
 fn bins(events: &[Event], n: usize, from: u64, to: u64) -> Vec<i32> {
@@ -329,6 +398,7 @@ fn emulated_runs(path: &Path, robot: &Robot) -> Result<Vec<RunEnd>> {
                 bins: Vec::new(),
                 agreement: None,
                 stream: None,
+                swivel: None,
             })
         })
         .collect()

@@ -47,6 +47,15 @@ pub struct GenerateArgs {
         default_value = "ideal"
     )]
     pub edges: String,
+    /// A carriage's swivel at the start, degrees (its heading minus the body's; -180 to 180):
+    /// where the last motion left it (0: aligned with the body).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub start_swivel_deg: f64,
 }
 
 /// `--phase` and `--seed` as a [`PowerOnPhase`].
@@ -107,6 +116,12 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
     host_bench::formats::atomic::check_output(&out)
         .with_context(|| format!("--out {}", out.display()))?;
     let phase = power_on_phase(&a.phase, a.seed)?;
+    if !(-180.0..=180.0).contains(&a.start_swivel_deg) {
+        bail!(
+            "--start-swivel-deg is an angle from -180 to 180 degrees: got {}",
+            a.start_swivel_deg
+        );
+    }
     let edges = generate::EdgeErrors::preset(&a.edges).context("--edges")?;
     let robot = Robot::load(&robot_path)?;
     let named = traj::named(&name).ok_or_else(|| {
@@ -126,6 +141,7 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
             abs_rate_hz: a.abs_rate,
             phase,
             edges,
+            start_swivel_rad: a.start_swivel_deg.to_radians(),
         },
     )?;
     tickstream::write(&out, &stream)?;

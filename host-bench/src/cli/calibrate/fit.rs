@@ -3,8 +3,8 @@
 
 use std::collections::BTreeMap;
 
-use anyhow::{bail, Result};
-use host_bench::calibrate::fit::{self, BinnedRun, Param};
+use anyhow::Result;
+use host_bench::calibrate::fit::{self, Param};
 use host_bench::calibrate::geometry;
 use host_bench::calibrate::runs::{self, RunEnd};
 use host_bench::formats::robot::Robot;
@@ -44,23 +44,7 @@ pub(super) fn run(
 ) -> Result<super::Calibrated> {
     let noise = super::noise(a)?;
     host_bench::calibrate::check_wiring(robot, all)?;
-    let binned: Vec<BinnedRun> = (all.iter())
-        .map(|r| {
-            if r.stream.is_none() {
-                bail!(
-                    "{}: an emulated run keeps no ticks to fit; record it (virtual-board and \
-                     record, or generate), or use --method umbmark",
-                    r.name
-                );
-            }
-            Ok(BinnedRun {
-                name: r.name.clone(),
-                start: r.start,
-                measured_end: r.measured_end,
-                bins: r.bins.clone(),
-            })
-        })
-        .collect::<Result<_>>()?;
+    let binned = runs::binned(all)?;
     let nominal = geometry(robot);
     let f = fit::fit(robot, &nominal, &binned, noise)?;
     let note = [format!(
@@ -126,13 +110,17 @@ fn text_report(r: &Report) -> String {
     s += "encoder     parameter          nominal          fitted           sigma      one run left out\n";
     for p in &f.params {
         let (unit, k) = match p.param {
-            Param::Lever => ("mm", 1e3),
+            Param::Lever | Param::Spacing => ("mm", 1e3),
+            Param::DiameterRatio | Param::SpacingRatio => ("", 1.0),
             Param::Direction => ("deg", 180.0 / std::f64::consts::PI),
             Param::Scale => ("um", 1e6),
         };
         let what = match p.param {
             // How far it moved across its rolling direction.
             Param::Lever => "lever shift",
+            Param::Spacing => "half spacing",
+            Param::DiameterRatio => "E_d",
+            Param::SpacingRatio => "E_b",
             Param::Direction => "direction",
             Param::Scale => "travel/count",
         };

@@ -41,9 +41,10 @@ pub struct CalibrateArgs {
     /// fingerprint the slave then reports.
     #[arg(long, requires = "drive_squares")]
     pub upload: bool,
-    /// `umbmark`: Borenstein's UMBmark, for two parallel measuring wheels, from squares
-    /// driven both ways. `fit`: every encoder's lever arm, direction and travel per count by
-    /// least squares over the runs' end poses, any body-fixed layout (docs/calibration.md).
+    /// `umbmark`: Borenstein's UMBmark, for two parallel measuring wheels (on the body or a
+    /// swivel carriage), from squares driven both ways. `fit`: every encoder's lever arm,
+    /// direction and travel per count by least squares over the runs' end poses, any
+    /// body-fixed layout, or a carriage's wheel spacing and travels (docs/calibration.md).
     #[arg(long, default_value = "umbmark", value_parser = ["umbmark", "fit"])]
     pub method: String,
     /// End poses measured by hand, `run,x_m,y_m,heading_deg` (run: the file as given to

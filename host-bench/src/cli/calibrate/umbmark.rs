@@ -26,7 +26,7 @@ pub(super) fn run(
     robot: &Robot,
     all: &[RunEnd],
 ) -> Result<super::Calibrated> {
-    let c = calibrate::calibrate_umbmark(robot, all)?;
+    let c = calibrate::calibrate_umbmark(robot, all, super::noise(a)?)?;
     let u = &c.umbmark;
     let note = [
         format!(

@@ -36,7 +36,7 @@
 //! **Swivel carriage** (seed 004): the measuring wheels ride a trailing caster whose heading φ
 //! is not part of the trajectory. It follows the caster equation (see `interp::Frames`): the
 //! axle trails the pivot (the body reference point) by `trail_m` and cannot slide sideways. It
-//! starts aligned with the body (swivel 0). φ is integrated with classic RK4 from one sample
+//! starts at `start_swivel_rad` from the body (0: aligned). φ is integrated with classic RK4 from one sample
 //! point to the next (steps of at most 0.16 ms, local error about (h·v/trail)^5 ≈ 1e-15 rad),
 //! using the interpolated velocity of the pivot, and the wheels' rolling speeds are those of
 //! the carriage twist (forward speed, 0, φ'). So with a carriage the tick instants are exact
@@ -118,6 +118,9 @@ pub struct GenerateOptions {
     /// Where the encoders put their edges ([`EdgeErrors`]); each encoder's are drawn from the
     /// power-on phase's seed (0 for a phase that has none).
     pub edges: EdgeErrors,
+    /// A carriage's swivel at the start, radians (carriage heading minus body heading): where
+    /// the last motion left it, anywhere inside an absolute-encoder code.
+    pub start_swivel_rad: f64,
 }
 
 impl Default for GenerateOptions {
@@ -128,6 +131,7 @@ impl Default for GenerateOptions {
             abs_rate_hz: 1000.0,
             phase: PowerOnPhase::Random { seed: 0 },
             edges: EdgeErrors::IDEAL,
+            start_swivel_rad: 0.0,
         }
     }
 }
@@ -299,7 +303,7 @@ pub fn generate_phases(
     let mut frames = Frames {
         traj,
         trail,
-        phi: traj.pose(0.0).theta,
+        phi: traj.pose(0.0).theta + opts.start_swivel_rad,
     };
     let wheels = robot.encoder_wheels();
     let mut tickers: Vec<Ticker> = phase_sets
@@ -421,8 +425,9 @@ pub fn generate_phases(
     ];
     if let Some(trail) = trail {
         comments.push(format!(
-            "carriage: trailing caster, trail {trail} m, swivel 0 at the start, \
-             heading integrated with RK4"
+            "carriage: trailing caster, trail {trail} m, swivel {} deg at the start, \
+             heading integrated with RK4",
+            opts.start_swivel_rad.to_degrees()
         ));
     }
     let mut streams = Vec::new();
