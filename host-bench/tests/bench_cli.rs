@@ -503,3 +503,111 @@ fn calibrate_drives_umbmarks_squares_on_the_bench_and_uploads_the_corrected_robo
     let fp = firmware_slave::robot_wire::layout_fingerprint(&written.odometry_layout().unwrap());
     assert_eq!(v["uploaded_fingerprint"], format!("{fp:08x}"), "{v}");
 }
+
+/// The same routine against a board that sends no truth, as a real one: the person at the
+/// bench is asked to put the robot on the start mark before each square and where it stopped
+/// after it; an answer that is not three numbers is asked again, naming the number; each
+/// answer is in DIR/measured.csv as soon as it is typed, and calibrating those files again
+/// later gives the same factors.
+#[test]
+fn calibrate_on_a_board_without_truth_asks_the_person_at_the_bench() {
+    use std::io::{Read, Write};
+    use std::time::{Duration, Instant};
+    let _alone = REAL_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let runs = dir.path().join("squares");
+    let nominal = small_axle_robot(dir.path(), false);
+    let nominal = nominal.to_str().unwrap();
+    let board = VirtualBoard::start(&["--robot", nominal, "--master-drives", "--no-truth"]);
+    let mut child = Command::new(BIN)
+        .args(["calibrate", "--robot", nominal, "--port", &board.port])
+        .args(["--side", "0.7", "--each", "1", "--json"])
+        .arg("--drive-squares")
+        .arg(&runs)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    // What the person types: Enter at the start mark, then a pose, the first one mistyped.
+    let talk = std::thread::spawn(move || {
+        let answers = [
+            ("and press Enter to drive: ", "\n"),
+            ("heading counter-clockwise): ", "0.031 oops -1.5\n"),
+            ("again: x_m y_m heading_deg: ", "0.031, -0.022, -1.5\n"),
+            ("and press Enter to drive: ", "\n"),
+            ("heading counter-clockwise): ", "0.029 0.018 1.25\n"),
+        ];
+        let (mut seen, mut answered, mut byte) = (String::new(), 0, [0u8; 1]);
+        while stderr.read(&mut byte).unwrap_or(0) == 1 {
+            seen.push(byte[0] as char);
+            if let Some((prompt, answer)) = answers.get(answered) {
+                if seen.ends_with(prompt) {
+                    stdin.write_all(answer.as_bytes()).unwrap();
+                    answered += 1;
+                }
+            }
+        }
+        (seen, answered)
+    });
+    let reader = std::thread::spawn(move || {
+        let mut out = String::new();
+        stdout.read_to_string(&mut out).unwrap();
+        out
+    });
+    // Two short squares take well under a minute: a question never answered must not hang.
+    let deadline = Instant::now() + Duration::from_secs(240);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let (seen, answered) = talk.join().unwrap();
+            panic!("calibrate still running after 240 s, {answered} answers given:\n{seen}");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let (stdout, (seen, answered)) = (reader.join().unwrap(), talk.join().unwrap());
+    assert!(
+        status.success() && answered == 5,
+        "{answered} answers:\n{seen}"
+    );
+    assert!(seen.contains("y_m \"oops\" is not a number"), "{seen}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let squares = v["bench"]["squares"].as_array().unwrap();
+    assert_eq!(squares.len(), 2, "{v}");
+    for (s, typed) in squares
+        .iter()
+        .zip([[0.031, -0.022, -1.5], [0.029, 0.018, 1.25]])
+    {
+        assert_eq!(s["recording"]["truth_rows"], 0, "{v}");
+        let got = s["measured"].as_array().unwrap();
+        for (g, t) in got.iter().zip(typed) {
+            assert!((g.as_f64().unwrap() - t).abs() < 1e-12, "{v}");
+        }
+    }
+    let measured = std::fs::read_to_string(runs.join("measured.csv")).unwrap();
+    assert_eq!(
+        measured,
+        "run,x_m,y_m,heading_deg\n\
+         umbmark-cw-1.csv,0.0310,-0.0220,-1.500\n\
+         umbmark-ccw-1.csv,0.0290,0.0180,1.250\n"
+    );
+    // The same calibration again from the files the session left.
+    let again = Command::new(BIN)
+        .args(["calibrate", "--robot", nominal, "--json", "--runs"])
+        .arg(runs.join("umbmark-cw-1.csv"))
+        .arg(runs.join("umbmark-ccw-1.csv"))
+        .arg("--measured")
+        .arg(runs.join("measured.csv"))
+        .output()
+        .unwrap();
+    let w: serde_json::Value = serde_json::from_slice(&again.stdout)
+        .unwrap_or_else(|_| panic!("{}", String::from_utf8_lossy(&again.stderr)));
+    assert_eq!(w["umbmark"]["e_d"], v["umbmark"]["e_d"], "{w}\n{v}");
+    assert_eq!(w["umbmark"]["e_b"], v["umbmark"]["e_b"], "{w}\n{v}");
+}

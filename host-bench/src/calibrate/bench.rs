@@ -110,13 +110,17 @@ pub fn drive_squares(
         .drive_geometry()
         .with_context(|| format!("--robot {}: the master drives it", sq.robot_file.display()))?;
     let files = plan(sq.each_way);
-    std::fs::create_dir_all(sq.dir)
-        .with_context(|| format!("--runs-dir {}: cannot make the folder", sq.dir.display()))?;
+    std::fs::create_dir_all(sq.dir).with_context(|| {
+        format!(
+            "--drive-squares {}: cannot make the folder",
+            sq.dir.display()
+        )
+    })?;
     for (name, _) in &files {
         let path = sq.dir.join(name);
         if path.exists() {
             bail!(
-                "--runs-dir {} already holds {name}: name a new folder (runs are never written \
+                "--drive-squares {} already holds {name}: name a new folder (runs are never written \
                  over)",
                 sq.dir.display()
             );
@@ -125,7 +129,7 @@ pub fn drive_squares(
     let measured_path = sq.dir.join("measured.csv");
     if measured_path.exists() {
         bail!(
-            "--runs-dir {} already holds measured.csv: name a new folder",
+            "--drive-squares {} already holds measured.csv: name a new folder",
             sq.dir.display()
         );
     }

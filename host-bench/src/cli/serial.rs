@@ -430,6 +430,10 @@ pub struct VirtualBoardArgs {
     /// square course.
     #[arg(long)]
     pub master_drives: bool,
+    /// Send no truth, as a real board: a recording then has no truth rows, and `calibrate
+    /// --drive-squares` asks for each square's measured end pose, as of a robot on the floor.
+    #[arg(long)]
+    pub no_truth: bool,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -491,6 +495,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             motor: model.motor,
         });
     }
+    opts.send_truth = !a.no_truth;
     if let Some(v) = a.course_speed {
         if !(v > 0.0 && v <= 1.0) {
             bail!("--course-speed is the robot's speed round its course, over 0 and at most 1 m/s: got {v}");

@@ -82,6 +82,9 @@ pub struct Options {
     /// wheels follow the master's duties, and the host must send this drive (`SetDrive`)
     /// first, as to real boards. None: the board's own course pushes it round.
     pub master_drives: Option<Drivetrain>,
+    /// Whether the board sends the host its truth (`SimTruth`); without it, it is as a real
+    /// board, and a recording has no truth rows.
+    pub send_truth: bool,
 }
 
 /// A robot's driven wheels and their motors, as they really are.
@@ -111,6 +114,7 @@ impl Options {
             edges: crate::sim::generate::EdgeErrors::IDEAL,
             true_layout: None,
             master_drives: None,
+            send_truth: true,
         }
     }
 }
@@ -401,7 +405,7 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         if let Some(fp) = opts.faults.schema {
             out = with_schema(&mut rewrite, &out, fp);
         }
-        if sim.now() >= next_truth {
+        if opts.send_truth && sim.now() >= next_truth {
             next_truth = sim.now() + Duration::from_millis(10);
             let b = plant.borrow().body();
             let msg = MasterToHost::SimTruth {
