@@ -452,7 +452,7 @@ pub fn fit(
             );
         }
     }
-    let advice = advise(&unresolved, axle);
+    let advice = advise(&unresolved, axle, n);
     Ok(Fit {
         params,
         after,
@@ -585,8 +585,20 @@ fn param_name(p: Param) -> &'static str {
 }
 
 /// Which test motion excites what the runs left unresolved.
-fn advise(unresolved: &[Vec<(String, f64)>], axle: bool) -> Vec<String> {
+fn advise(unresolved: &[Vec<(String, f64)>], axle: bool, encoders: usize) -> Vec<String> {
     let mut advice = Vec::new();
+    // More than three wheels: the odometry solves their counts by least squares, and on counts
+    // that agree (no slip) only its 3 x 3 restriction to the counts a motion can give matters:
+    // 9 combinations of the 3n numbers. The other 3(n - 3) no motion shows.
+    if encoders > 3 && unresolved.len() <= 3 * (encoders - 3) {
+        advice.push(format!(
+            "no motion: with {encoders} wheels the end poses fix 9 combinations of their {} \
+             numbers, those the odometry uses (any geometry that gives the same odometry fits as \
+             well); the runs held out (--check) say whether the fitted file holds",
+            3 * encoders
+        ));
+        return advice;
+    }
     for parts in unresolved {
         let has = |what: &str| parts.iter().any(|(n, _)| n.ends_with(what));
         if has("lever arm") || has("half spacing") {
