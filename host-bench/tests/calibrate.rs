@@ -272,21 +272,7 @@ fn a_fit_of_three_omni_wheels_recovers_them_and_holds_on_runs_it_did_not_see() {
         .collect();
     let nominal = repo("robots/skewed3.toml");
     let fitted = p("fitted.toml");
-    let mut args: Vec<&std::ffi::OsStr> = vec![
-        "calibrate".as_ref(),
-        "--method".as_ref(),
-        "fit".as_ref(),
-        "--robot".as_ref(),
-        nominal.as_os_str(),
-        "--json".as_ref(),
-        "--out".as_ref(),
-        fitted.as_os_str(),
-        "--runs".as_ref(),
-    ];
-    args.extend(fit.iter().map(|f| f.as_os_str()));
-    args.push("--check".as_ref());
-    args.extend(check.iter().map(|f| f.as_os_str()));
-    let v: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
+    let v = fit_and_check(&nominal, &fit, &check, &fitted);
     let truly =
         host_bench::formats::robot::Robot::parse(SKEWED3_AS_BUILT, &p("true.toml")).unwrap();
     let got = host_bench::formats::robot::Robot::load(&fitted).unwrap();
@@ -327,6 +313,31 @@ fn a_fit_of_three_omni_wheels_recovers_them_and_holds_on_runs_it_did_not_see() {
         !out.status.success() && err.contains("at least 3 runs"),
         "{err}"
     );
+}
+
+/// `calibrate --method fit --json` of `nominal` on `fit`, writing `fitted`, and `check` held
+/// out.
+fn fit_and_check(
+    nominal: &Path,
+    fit: &[PathBuf],
+    check: &[PathBuf],
+    fitted: &Path,
+) -> serde_json::Value {
+    let mut args: Vec<&std::ffi::OsStr> = vec![
+        "calibrate".as_ref(),
+        "--method".as_ref(),
+        "fit".as_ref(),
+        "--robot".as_ref(),
+        nominal.as_os_str(),
+        "--json".as_ref(),
+        "--out".as_ref(),
+        fitted.as_os_str(),
+        "--runs".as_ref(),
+    ];
+    args.extend(fit.iter().map(|f| f.as_os_str()));
+    args.push("--check".as_ref());
+    args.extend(check.iter().map(|f| f.as_os_str()));
+    serde_json::from_str(&ok(&args)).unwrap()
 }
 
 /// Two encoders' cables swapped: named as such, not fitted.
@@ -441,21 +452,7 @@ fn a_swivel_carriage_is_calibrated_by_umbmark_and_by_the_fit() {
     // end error is the geometry's alone.
     let check = [gen("rest-then-arcs", 6, 0.0), gen("seed001-curve", 7, 0.0)];
     let fitted = p("fitted.toml");
-    let mut args: Vec<&std::ffi::OsStr> = vec![
-        "calibrate".as_ref(),
-        "--method".as_ref(),
-        "fit".as_ref(),
-        "--robot".as_ref(),
-        nominal.as_os_str(),
-        "--json".as_ref(),
-        "--out".as_ref(),
-        fitted.as_os_str(),
-        "--runs".as_ref(),
-    ];
-    args.extend(fit.iter().map(|f| f.as_os_str()));
-    args.push("--check".as_ref());
-    args.extend(check.iter().map(|f| f.as_os_str()));
-    let v: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
+    let v = fit_and_check(&nominal, &fit, &check, &fitted);
     let truly = host_bench::formats::robot::Robot::load(&truly).unwrap();
     let got = host_bench::formats::robot::Robot::load(&fitted).unwrap();
     for (t, g) in truly.encoders.iter().zip(&got.encoders) {
