@@ -53,6 +53,7 @@ fn every_robot_file_loads_and_is_named_after_its_file() {
             "seed002-as-built",
             "seed003",
             "seed004",
+            "seed004-as-built",
             "skewed3"
         ]
     );
