@@ -46,6 +46,16 @@ impl Drop for VirtualBoard {
 /// a board and a hundred processes of its own.
 static REAL_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
+/// What a command that must succeed printed on stdout, as JSON; its stderr if it failed.
+fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 fn data(p: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../robots")
@@ -89,12 +99,7 @@ fn play_prints_the_verdict_as_json_and_a_wrong_robot_is_refused() {
         .arg(&ticks)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = json_of(&out);
     for key in [
         "events",
         "board_updates",
@@ -244,12 +249,7 @@ fn record_writes_a_stream_that_replay_scores() {
         .arg(&rec)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = json_of(&out);
     let err = v["algorithms"][0]["final_error_m"].as_f64().unwrap();
     assert!(err < 5e-3, "{v}");
     // The board's own poses, beside the stream, scored too.
@@ -467,12 +467,7 @@ fn calibrate_drives_umbmarks_squares_on_the_bench_and_uploads_the_corrected_robo
         .stdin(Stdio::null())
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = json_of(&out);
     let (e_d, e_b) = (
         v["umbmark"]["e_d"].as_f64().unwrap(),
         v["umbmark"]["e_b"].as_f64().unwrap(),
