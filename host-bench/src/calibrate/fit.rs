@@ -420,14 +420,11 @@ pub fn fit(
         .pseudo_inverse(1e-12 * max * max)
         .ok();
     let after = model.geometry(&p);
+    // The nominal geometry's values (no runs: no offsets).
+    let nominal_values = model.start(0);
     let mut params = Vec::new();
     for (k, &(e, what)) in model.free.iter().enumerate() {
-        let before = match what {
-            Param::Lever | Param::Spacing => 0.0,
-            Param::DiameterRatio | Param::SpacingRatio => 1.0,
-            Param::Direction => nominal[e].direction_deg.to_radians(),
-            Param::Scale => nominal[e].metres_per_count,
-        };
+        let before = nominal_values[k];
         let sigma = cov
             .as_ref()
             .map_or(f64::NAN, |c| (c[(k, k)] * s2).sqrt() * model.scale(k));
