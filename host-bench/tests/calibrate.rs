@@ -429,6 +429,25 @@ fn a_swivel_carriage_is_calibrated_by_umbmark_and_by_the_fit() {
         "{err}"
     );
     assert!(!p("never.csv").exists());
+    // And so is a swivel on a robot without a carriage.
+    let seed002 = repo("robots/seed002.toml");
+    let out = host_bench(&[
+        "generate".as_ref(),
+        "--robot".as_ref(),
+        seed002.as_os_str(),
+        "--trajectory".as_ref(),
+        "umbmark-cw".as_ref(),
+        "--start-swivel-deg".as_ref(),
+        "10".as_ref(),
+        "--out".as_ref(),
+        p("never.csv").as_os_str(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("no swivel carriage"),
+        "{err}"
+    );
+    assert!(!p("never.csv").exists());
     let (cw, ccw) = (gen("umbmark-cw", 1, 37.3), gen("umbmark-ccw", 2, -52.9));
     let c = calibrate(&nominal, &[&cw, &ccw], None);
     let u = &c["umbmark"];

@@ -124,6 +124,12 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
     }
     let edges = generate::EdgeErrors::preset(&a.edges).context("--edges")?;
     let robot = Robot::load(&robot_path)?;
+    if a.start_swivel_deg != 0.0 && robot.carriage.is_none() {
+        bail!(
+            "--start-swivel-deg: robot {} has no swivel carriage to start swung",
+            robot.name
+        );
+    }
     let named = traj::named(&name).ok_or_else(|| {
         anyhow::anyhow!("unknown trajectory {name:?}; `host-bench generate --list` names them")
     })?;

@@ -63,8 +63,8 @@ impl Interp {
 /// heading φ follows the caster equation. The pivot is the body reference point P; the axle
 /// midpoint trails it by `trail` and cannot slide sideways, so with P's field velocity w,
 /// φ' = (−sin φ·w_x + cos φ·w_y) / trail and the carriage moves forward at
-/// cos φ·w_x + sin φ·w_y (the same model as the emulator's plant). φ(0) = θ(0): the swivel
-/// angle is 0 at the start.
+/// cos φ·w_x + sin φ·w_y (the same model as the emulator's plant). φ(0) = θ(0) plus the
+/// swivel at the start (`GenerateOptions::start_swivel_rad`).
 pub(super) struct Frames<'a> {
     pub(super) traj: &'a dyn Trajectory,
     pub(super) trail: Option<f64>,
