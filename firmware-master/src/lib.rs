@@ -10,6 +10,7 @@
 //! * **control**: at a fixed rate, watchdogs, pursuit, inverse kinematics, motor duties.
 #![cfg_attr(not(test), no_std)]
 
+mod baud;
 pub mod controller;
 pub mod drive_setup;
 pub mod ports;
@@ -64,9 +65,11 @@ pub struct MasterConfig {
     pub slave_timeout_us: u32,
     /// Motors stop when the host sent nothing for this long while a target was followed.
     pub host_timeout_us: u32,
-    /// Poll period while play/record streams are moving (a 128-byte frame takes 455 µs).
+    /// Poll period while play/record streams are moving (a 128-byte frame takes 228 µs).
     pub stream_poll_period_us: u32,
-    /// The serial link's baud rate (USART1; the host must use the same).
+    /// The serial link's power-on baud rate (USART1): where every host meets the master
+    /// before it asks for a faster one (`HostToMaster::SetBaud`), and where the master goes
+    /// back when a switch fails or the host falls silent.
     pub baud: u32,
     /// This chip's 96-bit unique ID (the board layer reads it; zero in the emulator).
     pub uid: [u8; 12],
@@ -113,7 +116,7 @@ impl MasterConfig {
         telemetry_period_us: 20_000,
         slave_timeout_us: 50_000,
         host_timeout_us: 500_000,
-        stream_poll_period_us: 1_000,
+        stream_poll_period_us: 500,
         baud: 115_200,
         uid: [0; 12],
     };

@@ -33,6 +33,14 @@ pub trait SlaveBus {
     ) -> Result<(), SpiMasterError>;
 }
 
+/// The serial port's rate, set while it runs: the host negotiates a faster one than the
+/// power-on rate (`crate::baud`). Both directions share it, as USART1's one divider does.
+pub trait SerialRate {
+    /// Run at `baud` (8N1) from now on; false, and the rate as it was, if the port cannot.
+    /// Called only once the bytes written before have left the line (`flush`).
+    fn set_baud(&mut self, baud: u32) -> bool;
+}
+
 /// The drive motors' encoders (quadrature, on the motor shafts).
 pub trait MotorEncoders {
     /// Each motor's count now, free-running: a 16-bit counter that wraps (the controller only

@@ -8,14 +8,14 @@ use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
 use protocol::spi::{self, SlaveFrame, SPI_FRAME_LEN};
 
 use crate::controller::Drive;
-use crate::ports::{MotorDrivers, MotorEncoders, SlaveBus};
+use crate::ports::{MotorDrivers, MotorEncoders, SerialRate, SlaveBus};
 use crate::{MasterConfig, MasterShared};
 
 /// Run the master firmware forever.
 pub async fn run(
     bus: impl SlaveBus,
     serial_rx: impl Read,
-    serial_tx: impl Write,
+    serial_tx: impl Write + SerialRate,
     mut motors: impl MotorDrivers,
     encoders: impl MotorEncoders,
     shared: &MasterShared,
@@ -79,7 +79,7 @@ async fn host_rx_task(mut rx: impl Read, shared: &MasterShared) -> ! {
 
 /// How often the host side checks the play/record streams for a frame to send while they
 /// move (`Controller::streaming`).
-const STREAM_TX_PERIOD: Duration = Duration::from_millis(1);
+const STREAM_TX_PERIOD: Duration = Duration::from_micros(500);
 /// And while they stand: a stream's first frame (the ack of the host's first events) then
 /// waits at most this long, and the task wakes a tenth as often when nothing streams (a
 /// thousand wake-ups a second were a third of an emulated master's polls, 2.8 % of an
@@ -87,8 +87,13 @@ const STREAM_TX_PERIOD: Duration = Duration::from_millis(1);
 const STREAM_IDLE_PERIOD: Duration = Duration::from_millis(10);
 
 /// Send replies as they come, stream frames (acks, reports) as they are due, and telemetry
-/// at a fixed rate.
-async fn host_tx_task(mut tx: impl Write, shared: &MasterShared, config: &MasterConfig) -> ! {
+/// at a fixed rate; switch the port's rate when a `BaudSet` answer is out, and back to the
+/// power-on rate when the switch did not work.
+async fn host_tx_task(
+    mut tx: impl Write + SerialRate,
+    shared: &MasterShared,
+    config: &MasterConfig,
+) -> ! {
     let mut ticker = Ticker::every(Duration::from_micros(config.telemetry_period_us as u64));
     let mut stream_period = STREAM_IDLE_PERIOD;
     let mut streams = Ticker::every(stream_period);
@@ -108,6 +113,14 @@ async fn host_tx_task(mut tx: impl Write, shared: &MasterShared, config: &Master
             Either3::First(reply) => reply,
             // While play/record streams move, they have the line: telemetry waits.
             Either3::Second(()) => {
+                let fallback = shared
+                    .with(|c| c.baud_fallback_due(Instant::now()))
+                    .flatten();
+                if let Some(baud) = fallback {
+                    if tx.set_baud(baud) {
+                        shared.with(|c| c.baud_switched(Instant::now(), baud));
+                    }
+                }
                 match shared.with(|c| (!c.streaming()).then(|| c.telemetry(Instant::now()))) {
                     Some(Some(t)) => MasterToHost::Telemetry(t),
                     _ => continue,
@@ -121,6 +134,13 @@ async fn host_tx_task(mut tx: impl Write, shared: &MasterShared, config: &Master
         if let Ok(frame) = serial::encode(&msg, &mut buf) {
             // A write error means the host side is gone; the host watchdog handles that.
             let _ = tx.write_all(frame).await;
+        }
+        if let MasterToHost::BaudSet { baud } = msg {
+            // The answer must leave at the old rate, to its last stop bit.
+            let _ = tx.flush().await;
+            if tx.set_baud(baud) {
+                shared.with(|c| c.baud_switched(Instant::now(), baud));
+            }
         }
     }
 }

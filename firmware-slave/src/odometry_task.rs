@@ -11,7 +11,7 @@ use core::mem::MaybeUninit;
 use embassy_time::{Duration, Instant, Ticker};
 use postcard::experimental::max_size::MaxSize;
 use protocol::spi::{
-    frame_report, slave_status, Report, Reports, SensorSource, SlaveCommand, SlaveFrame,
+    frame_report, slave_status, PoseChecks, Report, Reports, SensorSource, SlaveCommand, SlaveFrame,
 };
 use robot_math::exact::FixedPose;
 use robot_math::odometry::Layout;
@@ -407,8 +407,8 @@ impl Odometer {
                 reports,
                 start,
             }) => {
-                let for_estimator = self.set_source(source, start, shared, config, r, edges);
                 self.reports = reports;
+                let for_estimator = self.set_source(source, start, shared, config, r, edges);
                 (for_estimator, true)
             }
             other => return (other, false),
@@ -416,8 +416,8 @@ impl Odometer {
         (restart, new_streams)
     }
 
-    /// A new sensor source (and report stream): played sensors restarted in place, or the
-    /// estimator on a live source, from `start` with the method that ran before.
+    /// A new sensor source (and report stream, `self.reports`): played sensors restarted in
+    /// place, or the estimator on a live source, from `start` with the method that ran before.
     fn set_source(
         &mut self,
         source: SensorSource,
@@ -443,9 +443,13 @@ impl Odometer {
         };
         let start = FixedPose::from_micrometres(start.x_um, start.y_um, start.heading.0);
         let period = config.update_period_us;
+        let checks = match self.reports {
+            Reports::Poses(checks) => checks,
+            _ => PoseChecks::ALL,
+        };
         match self
             .played
-            .restart(&self.layout, method, kind, period, start)
+            .restart(&self.layout, method, kind, period, start, checks)
         {
             Ok(()) => self.playing = true,
             Err(_) => self.sticky |= slave_status::ALGORITHM_UNSUPPORTED,

@@ -19,7 +19,7 @@
 use core::mem::MaybeUninit;
 
 use protocol::events::{Event, EventDecoder, Sample, SampleDecoder, Step};
-use protocol::spi::{pose_digest, Report};
+use protocol::spi::{pose_digest, PoseChecks, Report};
 use robot_math::exact::{FixedPose, MAX_ENCODERS};
 use robot_math::odometry::{Layout, Method, Odometry, SensorKind, Unsupported};
 
@@ -66,6 +66,10 @@ pub struct PlayedSensors {
     updates: u32,
     /// Nothing taken in yet: a reading now is where the absolute encoder starts.
     at_start: bool,
+    /// Which updates are reported.
+    checks: PoseChecks,
+    /// The running digest of every update's pose so far.
+    digest: u32,
 }
 
 /// The played-sensor kind an odometry method needs.
@@ -77,7 +81,8 @@ fn sensor_kind(kind: PlayKind) -> SensorKind {
 }
 
 impl PlayedSensors {
-    /// Start at `start` at played time 0, all counts zero.
+    /// Start at `start` at played time 0, all counts zero, reporting the updates `checks`
+    /// picks.
     ///
     /// By value, for the host; the board builds its played sensors in place
     /// ([`init`](Self::init) and [`restart`](Self::restart)).
@@ -87,9 +92,11 @@ impl PlayedSensors {
         kind: PlayKind,
         period_us: u32,
         start: FixedPose,
+        checks: PoseChecks,
     ) -> Result<Self, Unsupported> {
         let mut slot = MaybeUninit::uninit();
-        PlayedSensors::init(&mut slot, layout).restart(layout, method, kind, period_us, start)?;
+        PlayedSensors::init(&mut slot, layout)
+            .restart(layout, method, kind, period_us, start, checks)?;
         // SAFETY: `init` wrote every field.
         Ok(unsafe { slot.assume_init() })
     }
@@ -110,6 +117,8 @@ impl PlayedSensors {
                 failed: true,
                 updates: 0,
                 at_start: true,
+                checks: PoseChecks::ALL,
+                digest: 0,
             } in_place {
                 odometry: Odometry::init(layout),
             }
@@ -125,6 +134,7 @@ impl PlayedSensors {
         kind: PlayKind,
         period_us: u32,
         start: FixedPose,
+        checks: PoseChecks,
     ) -> Result<(), Unsupported> {
         let started = self.odometry.restart(
             layout,
@@ -148,6 +158,8 @@ impl PlayedSensors {
         self.failed = started.is_err();
         self.updates = 0;
         self.at_start = true;
+        self.checks = checks;
+        self.digest = 0;
         started
     }
 
@@ -274,17 +286,20 @@ impl PlayedSensors {
     /// One update at the next instant; the caller checked the sink has room.
     fn update(&mut self, emit: &mut dyn ReportSink) {
         let pose = self.odometry.update(self.next_update_ns);
-        let (x_um, y_um) = pose.micrometres();
-        let report = Report::Pose {
-            pose: protocol::Pose {
-                x_um,
-                y_um,
-                heading: protocol::BinaryAngle(pose.heading_bam()),
-            },
-            digest: pose_digest(pose.x, pose.y, pose.theta),
-        };
-        emit.push(report);
+        self.digest = pose_digest(self.digest, pose.x, pose.y, pose.theta);
         self.next_update_ns += self.period_ns;
         self.updates = self.updates.wrapping_add(1);
+        if self.checks.reports(self.updates) {
+            let (x_um, y_um) = pose.micrometres();
+            emit.push(Report::Pose {
+                update: self.updates,
+                pose: protocol::Pose {
+                    x_um,
+                    y_um,
+                    heading: protocol::BinaryAngle(pose.heading_bam()),
+                },
+                digest: self.digest,
+            });
+        }
     }
 }

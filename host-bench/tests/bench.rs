@@ -173,6 +173,18 @@ fn play_file(
     kind: PlayKind,
     faults: host_bench::serial::link::Faults,
 ) -> anyhow::Result<play::PlayOutcome> {
+    play_checking(board, ticks, robot, kind, faults, play::CHECK_EVERY)
+}
+
+/// [`play_file`] with the board reporting every `check_every`-th pose in full.
+fn play_checking(
+    board: &Board,
+    ticks: &Path,
+    robot: &Robot,
+    kind: PlayKind,
+    faults: host_bench::serial::link::Faults,
+    check_every: u16,
+) -> anyhow::Result<play::PlayOutcome> {
     let stream = tickstream::read(ticks)?;
     let mut link = board.link();
     link.faults = faults;
@@ -184,6 +196,7 @@ fn play_file(
             method: Method::Exact,
             kind,
             stream: &stream,
+            check_every,
             progress: None,
         },
     )
@@ -316,7 +329,8 @@ fn a_noisy_serial_line_and_spi_wire_lose_nothing_and_stay_bit_exact() {
     opts.faults.spi.duplicate = 0.01;
     let board = Board::start(opts);
     for kind in [PlayKind::Ticks, PlayKind::Counts] {
-        let o = play_file(&board, &ticks, &robot, kind, Default::default())
+        // Every pose in full: the most frames from the board, for the noise to hit.
+        let o = play_checking(&board, &ticks, &robot, kind, Default::default(), 1)
             .unwrap_or_else(|e| panic!("{kind:?}: {e:#}"));
         assert_eq!(o.mismatches, 0, "{kind:?}: {:?}", o.first_mismatch);
         assert_eq!(o.board_updates, o.expected_updates, "{kind:?}");
@@ -691,4 +705,103 @@ fn a_virtual_board_whose_robot_is_not_as_told_records_the_true_robot() {
             && wrong.final_heading_error_rad.abs() > 3e-3,
         "true {right:?}, nominal {wrong:?}"
     );
+}
+
+/// A board that computes something else than the host (one played-event byte changed on its
+/// way to the slave, under a valid check: a bug, not noise) is caught at the first update
+/// that differs, named exactly: the same update whether every pose comes back in full or one
+/// in fifty, the window it lies in then played again with every pose.
+#[test]
+fn a_board_that_computes_otherwise_is_caught_at_its_first_different_update() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ticks, robot) = write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.31, 0.77, 0.05]);
+    let mut opts = virtual_board::Options::default();
+    opts.faults.spi.event_bit = Some(1_501);
+    let board = Board::start(opts);
+    let first = [1, play::CHECK_EVERY].map(|every| {
+        let o = play_checking(
+            &board,
+            &ticks,
+            &robot,
+            PlayKind::Ticks,
+            Default::default(),
+            every,
+        )
+        .unwrap();
+        assert_eq!(o.mismatches, 1, "every {every}: {o:?}");
+        let m = o.first_mismatch.clone().unwrap();
+        // Every update before it was proven the same, none after.
+        assert_eq!(o.board_updates + 1, m.update, "every {every}: {o:?}");
+        assert!(m.update > 100 && m.update < o.expected_updates, "{m:?}");
+        assert!(m.board.contains("Pose") && m.host.contains("Pose"), "{m:?}");
+        assert_ne!(m.board, m.host);
+        m.update
+    });
+    assert_eq!(
+        first[0], first[1],
+        "the window played again names the same update"
+    );
+}
+
+/// The link switched up, as `--baud 2000000` asks: the play runs at that rate, bit-exact, and
+/// leaves the master at its power-on rate, where the next host finds it at once.
+#[test]
+fn a_play_switches_the_link_to_the_rate_asked_for_and_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ticks, robot) = write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.31, 0.77, 0.05]);
+    let board = Board::start(virtual_board::Options::default());
+    let o = play_at(&board, &ticks, &robot, 2_000_000);
+    assert_eq!((o.baud, o.baud_asked), (2_000_000, 2_000_000), "{o:?}");
+    assert_eq!(o.mismatches, 0, "{:?}", o.first_mismatch);
+    assert_eq!(o.board_updates, o.expected_updates);
+    let mut link = board.link();
+    let asked = std::time::Instant::now();
+    let info = host_bench::serial::session::hello(&mut link).unwrap();
+    assert_eq!(info.baud, 115_200);
+    assert!(asked.elapsed().as_secs_f64() < 1.0, "{:?}", asked.elapsed());
+}
+
+/// A rate the adapter does not carry (a CH340 asked for 3 Mbaud): host and master go back to
+/// 115 200 within a second, the host says so, and the play completes there.
+#[test]
+fn a_rate_the_adapter_does_not_carry_falls_back_and_the_play_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ticks, robot) = write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.31, 0.77, 0.05]);
+    let mut opts = virtual_board::Options::default();
+    opts.adapter.max_baud = 2_000_000;
+    let board = Board::start(opts);
+    let mut link = host_bench::serial::link::Link::open(&board.port, 3_000_000).unwrap();
+    let stream = tickstream::read(&ticks).unwrap();
+    let o = play::play(&mut link, &request(&ticks, &robot, &stream)).unwrap();
+    assert_eq!((o.baud, o.baud_asked), (115_200, 3_000_000), "{o:?}");
+    assert_eq!(o.mismatches, 0, "{:?}", o.first_mismatch);
+    assert_eq!(o.board_updates, o.expected_updates);
+    let note = link.baud_note.clone().unwrap();
+    assert!(note.contains("went back to 115200"), "{note}");
+    let secs: f64 = note
+        .split(", ")
+        .last()
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{note}"));
+    assert!(secs < 1.0, "{note}");
+}
+
+fn request<'a>(ticks: &'a Path, robot: &'a Robot, stream: &'a TickStream) -> play::PlayRequest<'a> {
+    play::PlayRequest {
+        ticks,
+        robot,
+        method: Method::Exact,
+        kind: PlayKind::Ticks,
+        stream,
+        check_every: play::CHECK_EVERY,
+        progress: None,
+    }
+}
+
+/// A play of `ticks` with the link switched to `baud`.
+fn play_at(board: &Board, ticks: &Path, robot: &Robot, baud: u32) -> play::PlayOutcome {
+    let stream = tickstream::read(ticks).unwrap();
+    let mut link = host_bench::serial::link::Link::open(&board.port, baud).unwrap();
+    play::play(&mut link, &request(ticks, robot, &stream)).unwrap()
 }

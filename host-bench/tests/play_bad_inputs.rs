@@ -20,7 +20,7 @@ use host_bench::serial::{play, record, session};
 use host_bench::sim::virtual_board;
 use protocol::link::{GbnSender, DEFAULT_TIMEOUT_US};
 use protocol::serial::{HostToMaster, MasterToHost};
-use protocol::spi::{Reports, SensorSource};
+use protocol::spi::{PoseChecks, Reports, SensorSource};
 use robot_math::exact::FixedPose;
 use robot_math::odometry::Method;
 
@@ -302,6 +302,7 @@ fn a_carriage_recording_plays_as_close_to_its_truth_as_it_replays() {
                 method: Method::Exact,
                 kind,
                 stream: &stream,
+                check_every: play::CHECK_EVERY,
                 progress: None,
             },
         )
@@ -341,6 +342,7 @@ fn a_play_after_an_interrupted_one_runs_whole() {
                 method: Method::Exact,
                 kind: PlayKind::Ticks,
                 stream: &s,
+                check_every: play::CHECK_EVERY,
                 progress: None,
             },
         )
@@ -362,8 +364,14 @@ fn interrupted_play(board: &Board, robot: &Robot, s: &TickStream) {
     session::load_robot(&mut link, &layout).unwrap();
     let source = SensorSource::PlayedTicks;
     let start = protocol::Pose::default();
-    session::set_method_and_source(&mut link, Method::Exact, source, Reports::Poses, start)
-        .unwrap();
+    session::set_method_and_source(
+        &mut link,
+        Method::Exact,
+        source,
+        Reports::Poses(PoseChecks::ALL),
+        start,
+    )
+    .unwrap();
     let p = PlayedStream::new(s, robot, PlayKind::Ticks, info.period_us).unwrap();
     let mut bytes = Vec::new();
     p.bytes()

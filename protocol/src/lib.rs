@@ -34,7 +34,7 @@ pub use bytes::Bytes;
 pub use units::{metres_to_um, BinaryAngle, Point, Pose};
 
 /// Version of the wire protocol described by this crate. Bumped on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 6;
+pub const PROTOCOL_VERSION: u16 = 7;
 
 /// [`schema_fingerprint`] of this crate, as a constant: what the firmware reports.
 ///
@@ -42,7 +42,7 @@ pub const PROTOCOL_VERSION: u16 = 6;
 /// reads cost ~5 KB of flash for one number that only changes when the code does. So the
 /// boards send this constant and the golden test (`fingerprint_is_pinned`) proves it equals
 /// the computed value; a message change that forgets to update it fails that test.
-pub const SCHEMA_FINGERPRINT: u32 = 0xb35f_83d1;
+pub const SCHEMA_FINGERPRINT: u32 = 0x3b27_1056;
 
 /// A CRC-32 over the postcard schemas of every message type in this crate.
 ///

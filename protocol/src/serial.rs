@@ -51,7 +51,23 @@ pub enum HostToMaster {
     /// The drive this image runs from now on (wheel layout, limits, tracking gains): one
     /// firmware serves every robot. Stops any motion; refused with `InvalidDrive`.
     SetDrive(DriveGeometry),
+    /// Talk at `baud` from now on (esptool's way: meet at the power-on rate, then both switch).
+    /// The master answers [`MasterToHost::BaudSet`] at the old rate and then switches; unless
+    /// a good frame arrives at the new rate within [`BAUD_TRIAL_MS`], it goes back to its
+    /// power-on rate, as it does whenever the host falls silent. Refused with `InvalidBaud`.
+    SetBaud { baud: u32 },
 }
+
+/// How long the master waits for the host's first good frame at a new baud rate before it
+/// goes back to its power-on rate, milliseconds.
+pub const BAUD_TRIAL_MS: u32 = 400;
+/// How long the host may stay silent at a rate other than the power-on one before the master
+/// goes back to the power-on rate (a host that left without switching back), milliseconds.
+pub const BAUD_SILENCE_MS: u32 = 2_000;
+/// The fastest rate USART1 reaches: 72 MHz APB2 over the smallest divider, 16.
+pub const MAX_BAUD: u32 = 4_500_000;
+/// The slowest rate the master takes (the bench's frames would take seconds below it).
+pub const MIN_BAUD: u32 = 9_600;
 
 /// One sample of a reference path for the tracked point (seed 002's point A; an omni robot's
 /// reference point), in the field frame, valid from the moment it arrives.
@@ -160,6 +176,11 @@ pub enum MasterToHost {
         t_us: u64,
         pose: Pose,
     },
+    /// Answers [`HostToMaster::SetBaud`]: the last frame at the old rate; the master switches
+    /// to `baud` once it is out.
+    BaudSet {
+        baud: u32,
+    },
 }
 
 #[derive(Serialize, Deserialize, Schema, MaxSize, Clone, Copy, Debug, PartialEq, Eq)]
@@ -174,6 +195,8 @@ pub enum RejectReason {
     /// A drive geometry the master cannot use (wheels not apart, tracked point on the axle,
     /// a limit or gain not positive).
     InvalidDrive,
+    /// A baud rate outside [`MIN_BAUD`]..=[`MAX_BAUD`], or one this board's port cannot set.
+    InvalidBaud,
 }
 
 /// The master's periodic report.

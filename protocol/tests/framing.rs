@@ -4,8 +4,8 @@ use proptest::prelude::*;
 use protocol::link::{Ack, DataFrame, MAX_CHUNK};
 use protocol::serial::{self, FrameDecoder, FrameError, HostToMaster, MovingTarget};
 use protocol::spi::{
-    self, Chunk, MasterFrame, OdometryAlgorithm, Reports, SensorSource, SlaveCommand, SlaveFrame,
-    SpiFrameError, STREAM_CHUNK,
+    self, Chunk, MasterFrame, OdometryAlgorithm, PoseChecks, Reports, SensorSource, SlaveCommand,
+    SlaveFrame, SpiFrameError, STREAM_CHUNK,
 };
 use protocol::{BinaryAngle, Bytes, Point, Pose};
 
@@ -76,7 +76,8 @@ fn arb_source() -> impl Strategy<Value = SensorSource> {
 fn arb_reports() -> impl Strategy<Value = Reports> {
     prop_oneof![
         Just(Reports::Off),
-        Just(Reports::Poses),
+        (any::<u16>(), any::<u32>())
+            .prop_map(|(every, all_from)| Reports::Poses(PoseChecks { every, all_from })),
         any::<u16>().prop_map(|pose_every| Reports::Record { pose_every }),
     ]
 }

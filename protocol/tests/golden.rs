@@ -21,7 +21,7 @@ fn serial_hex<T: serde::Serialize>(msg: &T) -> String {
 #[test]
 fn hello_frame_bytes() {
     // postcard: variant 0, u16 2 as varint -> 00 02; then CRC-32 LE; COBS; delimiter.
-    assert_eq!(PROTOCOL_VERSION, 6, "a new version needs new golden bytes");
+    assert_eq!(PROTOCOL_VERSION, 7, "a new version needs new golden bytes");
     assert_eq!(
         serial_hex(&HostToMaster::Hello {
             protocol_version: PROTOCOL_VERSION
@@ -61,6 +61,29 @@ fn hello_reply_frame_bytes() {
         baud: 921_600,
     });
     assert_eq!(serial_hex(&msg), GOLDEN_HELLO_REPLY);
+}
+
+#[test]
+fn baud_switch_frame_bytes() {
+    // New in v7: the host asks for a faster link, the master answers before it switches.
+    assert_eq!(
+        serial_hex(&HostToMaster::SetBaud { baud: 2_000_000 }),
+        GOLDEN_SET_BAUD
+    );
+    assert_eq!(
+        serial_hex(&MasterToHost::BaudSet { baud: 2_000_000 }),
+        GOLDEN_BAUD_SET
+    );
+    // And a play's checks: every 50th update, all from the 1 201st.
+    let msg = HostToMaster::Slave(SlaveCommand::SetSource {
+        source: SensorSource::PlayedCounts,
+        reports: Reports::Poses(spi::PoseChecks {
+            every: 50,
+            all_from: 1_201,
+        }),
+        start: Pose::default(),
+    });
+    assert_eq!(serial_hex(&msg), GOLDEN_SET_SOURCE_POSES);
 }
 
 #[test]
@@ -180,6 +203,7 @@ fn spi_frames_bytes() {
 /// A report chunk holding one `Report::Pose` record, as the slave streams it while playing.
 fn report_bytes() -> Bytes<{ spi::STREAM_CHUNK }> {
     let report = Report::Pose {
+        update: 300,
         pose: Pose {
             x_um: 5,
             y_um: -6,
@@ -203,16 +227,19 @@ fn fingerprint_is_pinned() {
     assert_eq!(protocol::SCHEMA_FINGERPRINT, protocol::schema_fingerprint());
 }
 
-const GOLDEN_HELLO: &str = "010606cab7baa800";
+const GOLDEN_SET_BAUD: &str = "090c80897a04c036d000";
+const GOLDEN_BAUD_SET: &str = "090680897a60208bbf00";
+const GOLDEN_SET_SOURCE_POSES: &str = "080706020132b109010105c4ce038f00";
+const GOLDEN_HELLO: &str = "0106075c87bddf00";
 const GOLDEN_SET_SOURCE: &str = "1407060302ac02d00f9f1f8080808008f6a586b400";
 const GOLDEN_HELLO_REPLY: &str =
-    "010706f8acd191011802010102030405060708090a0b0c01effdb6f50d01e8070880a0388076e7ba00";
+    "010707f8acd191011802010102030405060708090a0b0c01effdb6f50d01e8070880a038b627659e00";
 const GOLDEN_TRACK: &str = "0b0ac0843d9fc21e80ea300e8080808004d7dfbf0103f853e100";
 const GOLDEN_SET_DRIVE: &str =
     "2e0b01e0a712dfa712e0a71280ea3080ea30c03ec03ed00fd00f90039003a8e005c0843d80a4e8038827682bf55c00";
 const GOLDEN_FOLLOW: &str = "020213809bee02c096b102809bee02b0ae15c0cf24050aeaac0a00";
 const GOLDEN_TELEMETRY: &str =
     "0f01c0843dd8fc3c1744808080800401010bc8018f03d8040203060501010101060171ce365200";
-const GOLDEN_SLAVE_FRAME: &str = "5a07c0c407e0c8070201ffffffff0f010200008486880803d00fac02f0a20409000a0b078de0fbd70c0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000916a1a41";
+const GOLDEN_SLAVE_FRAME: &str = "5a07c0c407e0c8070201ffffffff0f010200008486880803d00fac02f0a2040b00ac020a0b078de0fbd70c0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000009779c1ac";
 const GOLDEN_MASTER_FRAME: &str = "a5090301000000800203102030f0a204000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000343ab21d";
-const GOLDEN_FINGERPRINT: &str = "b35f83d1";
+const GOLDEN_FINGERPRINT: &str = "3b271056";

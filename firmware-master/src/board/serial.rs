@@ -1,5 +1,6 @@
-//! USART1 to the host (a USB-serial adapter): 8N1 at `MasterConfig::baud` (115200 by
-//! default), both directions on DMA.
+//! USART1 to the host (a USB-serial adapter): 8N1, both directions on DMA, at
+//! `MasterConfig::baud` (115200) from power-on and at whatever rate the host negotiates after
+//! (`firmware_master`'s `baud` module; one divider serves both directions).
 //!
 //! Reception runs continuously into a circular DMA buffer (`RingBufferedUartRx`), so bytes keep
 //! arriving while the control code is busy and a read returns whatever is there: at once if
@@ -15,8 +16,37 @@ use embassy_stm32::Peri;
 
 use super::Irqs;
 
-/// The host-bound half: DMA writes, `embedded_io_async::Write`.
-pub type SerialTx = UartTx<'static, Async>;
+/// The host-bound half: DMA writes, `embedded_io_async::Write`, and the port's rate.
+pub struct SerialTx {
+    tx: UartTx<'static, Async>,
+    baud: u32,
+}
+
+impl embedded_io_async::ErrorType for SerialTx {
+    type Error = embassy_stm32::usart::Error;
+}
+
+impl embedded_io_async::Write for SerialTx {
+    async fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        self.tx.write(buf).await.map(|()| buf.len())
+    }
+
+    async fn flush(&mut self) -> Result<(), Self::Error> {
+        self.tx.flush().await
+    }
+}
+
+impl firmware_master::ports::SerialRate for SerialTx {
+    fn set_baud(&mut self, baud: u32) -> bool {
+        // A divider it cannot make leaves the USART disabled: put the old rate back.
+        if self.tx.set_baudrate(baud).is_ok() {
+            self.baud = baud;
+            return true;
+        }
+        let _ = self.tx.set_baudrate(self.baud);
+        false
+    }
+}
 /// The host-to-master half: circular DMA reception, `embedded_io_async::Read`.
 pub type SerialRx = RingBufferedUartRx<'static>;
 
@@ -51,6 +81,7 @@ pub fn new(
         )
     });
     let (tx, rx) = uart.split();
+    let tx = SerialTx { tx, baud };
 
     let buffer = cortex_m::singleton!(: [u8; RX_BUFFER_LEN] = [0; RX_BUFFER_LEN])
         .unwrap_or_else(|| defmt::panic!("serial::new called twice"));

@@ -12,11 +12,11 @@ use protocol::spi::SPI_FRAME_LEN;
 
 use super::Irqs;
 
-/// SCK rate. SPI1 runs from APB2 (72 MHz) through a power-of-two divider: /32 gives exactly
-/// 2.25 MHz: a `SPI_FRAME_LEN` (128-byte) frame takes ~455 us, inside the 1 ms stream poll
-/// period with room for the slave to re-arm, and the rate is slow enough for the slave's DMA
-/// and for a few centimetres of wire between the boards.
-const SCK_HZ: u32 = 2_250_000;
+/// SCK rate. SPI1 runs from APB2 (72 MHz) through a power-of-two divider: /16 gives exactly
+/// 4.5 MHz (`protocol::spi::SPI_CLOCK_HZ`): a `SPI_FRAME_LEN` (128-byte) frame takes ~228 us,
+/// inside the 500 us stream poll period with room for the slave to re-arm, a quarter of the
+/// slave's 18 MHz limit, and slow enough for a few centimetres of wire between the boards.
+const SCK_HZ: u32 = protocol::spi::SPI_CLOCK_HZ;
 
 /// Delay between chip select going low and the first clock edge, in CPU cycles (~5 us at
 /// 72 MHz). The slave's NSS must be seen low before clocking starts; this also leaves a margin
@@ -51,7 +51,7 @@ impl SlaveLink {
         // An absent or unpowered slave then reads as 0x00 bytes (a CRC failure) rather than
         // as whatever noise a floating MISO picks up.
         config.miso_pull = Pull::Down;
-        // 10 MHz output edges: plenty for 2.25 MHz, and less ringing on the inter-board wires.
+        // 10 MHz output edges: plenty for 4.5 MHz, and less ringing on the inter-board wires.
         config.gpio_speed = Speed::Medium;
 
         // Deselected (high) from the start, so the slave never sees a half transaction.

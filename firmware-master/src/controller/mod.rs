@@ -13,6 +13,7 @@ use protocol::spi::{MasterFrame, SlaveCommand, SlaveFrame, SpiFrameError};
 
 mod goal;
 
+use crate::baud::BaudLink;
 use crate::drive_setup::DriveSetup;
 use crate::relay::Relay;
 use goal::Goal;
@@ -55,6 +56,8 @@ pub struct Controller {
     euler: Option<((f64, f64), Instant)>,
     status: u16,
     last_host_rx: Option<Instant>,
+    /// The serial link's rate, as negotiated with the host.
+    baud: BaudLink,
     // Slave link.
     spi_seq: u16,
     /// Sequence number of the command at the front of the queue (or of the last one acked).
@@ -130,6 +133,7 @@ impl Controller {
                 euler: None,
                 status: 0,
                 last_host_rx: None,
+                baud: BaudLink::new(cfg.baud),
                 spi_seq: 0,
                 command_seq: 0,
                 commands: CommandQueue::new(),
@@ -158,6 +162,7 @@ impl Controller {
     pub fn on_host_message(&mut self, now: Instant, msg: HostToMaster) -> Option<MasterToHost> {
         self.counters.serial_ok = self.counters.serial_ok.wrapping_add(1);
         self.last_host_rx = Some(now);
+        self.baud.on_good_frame(now);
         self.status &= !status::HOST_LOST;
         match msg {
             HostToMaster::Hello { protocol_version } if protocol_version != PROTOCOL_VERSION => {
@@ -220,7 +225,22 @@ impl Controller {
                 None
             }
             HostToMaster::Heartbeat => None,
+            // Answered at the old rate; the host-tx task switches once the answer is out.
+            HostToMaster::SetBaud { baud } if BaudLink::accepts(baud) => {
+                Some(MasterToHost::BaudSet { baud })
+            }
+            HostToMaster::SetBaud { .. } => Some(self.reject(RejectReason::InvalidBaud)),
         }
+    }
+
+    /// The serial port runs at `baud` from now on (the host-tx task switched it).
+    pub fn baud_switched(&mut self, now: Instant, baud: u32) {
+        self.baud.switched(now, baud);
+    }
+
+    /// The power-on rate, when the port must go back to it ([`BaudLink::fallback_due`]).
+    pub fn baud_fallback_due(&self, now: Instant) -> Option<u32> {
+        self.baud.fallback_due(now)
     }
 
     /// A serial frame was dropped (COBS, CRC, decode or overflow).
@@ -660,7 +680,7 @@ impl Controller {
             source: slave.map_or(Default::default(), |f| f.source),
             period_us: slave.map_or(0, |f| f.period_us),
             algorithm: slave.map_or(Default::default(), |f| f.algorithm),
-            baud: self.cfg.baud,
+            baud: self.baud.current(),
         }
     }
 

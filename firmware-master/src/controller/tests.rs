@@ -286,6 +286,38 @@ fn wrong_protocol_version_is_refused() {
 }
 
 #[test]
+fn a_baud_switch_is_answered_at_the_old_rate_and_undone_unless_a_frame_comes_at_the_new() {
+    let mut c = ctl();
+    let info = |c: &mut Controller| match c.on_host_message(t(0), HostToMaster::Info) {
+        Some(MasterToHost::HelloReply(i)) => i.baud,
+        r => panic!("{r:?}"),
+    };
+    assert_eq!(info(&mut c), 115_200);
+    let ask = |c: &mut Controller, baud| c.on_host_message(t(10), HostToMaster::SetBaud { baud });
+    assert_eq!(
+        ask(&mut c, 2_000_000),
+        Some(MasterToHost::BaudSet { baud: 2_000_000 })
+    );
+    // Nothing switches before the host-tx task has sent the answer and says so.
+    assert_eq!(c.baud_fallback_due(t(5_000)), None);
+    c.baud_switched(t(10), 2_000_000);
+    // No frame at the new rate within the trial: back to the power-on rate.
+    let trial = protocol::serial::BAUD_TRIAL_MS as u64;
+    assert_eq!(c.baud_fallback_due(t(10 + trial)), None);
+    assert_eq!(c.baud_fallback_due(t(11 + trial)), Some(115_200));
+    c.baud_switched(t(11 + trial), 115_200);
+    assert_eq!(info(&mut c), 115_200);
+    // Rates the USART cannot make are refused, and change nothing.
+    for bad in [0, 300, 4_500_001] {
+        assert_eq!(
+            ask(&mut c, bad),
+            Some(MasterToHost::Rejected(RejectReason::InvalidBaud))
+        );
+    }
+    assert_eq!(info(&mut c), 115_200);
+}
+
+#[test]
 fn set_pose_is_repeated_until_acknowledged_and_old_poses_are_ignored() {
     let mut c = ctl();
     let p = Pose {
@@ -523,7 +555,7 @@ fn slave_commands_are_forwarded_in_order_each_until_acknowledged() {
         }),
         SlaveCommand::SetSource {
             source: SensorSource::PlayedTicks,
-            reports: Reports::Poses,
+            reports: Reports::Poses(protocol::spi::PoseChecks::ALL),
             start: Pose::default(),
         },
     ];
@@ -554,7 +586,7 @@ fn played_events_wait_for_the_pending_commands() {
     let mut c = ctl();
     let source = SlaveCommand::SetSource {
         source: SensorSource::PlayedTicks,
-        reports: Reports::Poses,
+        reports: Reports::Poses(protocol::spi::PoseChecks::ALL),
         start: Pose::default(),
     };
     c.on_host_message(t(0), HostToMaster::Slave(source));

@@ -17,8 +17,10 @@ pub struct PortArgs {
     /// [default: bench.toml's link.port].
     #[arg(long, value_name = "PORT")]
     pub port: Option<String>,
-    /// Baud rate; must be the master firmware's (115200 unless rebuilt) [default: bench.toml's,
-    /// else 115200].
+    /// Baud rate to switch the link to once the master answers at its power-on 115200 (up to
+    /// 4500000; USB-serial adapters reach 2000000 to 3000000). If the master does not answer
+    /// at the new rate, both go back to 115200 and the run goes on, saying so
+    /// [default: bench.toml's link.baud, else 115200].
     #[arg(long, value_name = "N")]
     pub baud: Option<u32>,
     /// Bench description [default: ./bench.toml if present].
@@ -79,6 +81,13 @@ pub struct PlayArgs {
     /// Odometry method the slave runs (exact, arc, lut, timing).
     #[arg(long, default_value = "exact")]
     pub algorithm: String,
+    /// The board reports every N-th pose in full, and every pose of the last window; each
+    /// report carries the running digest of every pose before it, so every update is still
+    /// checked bit for bit. On a difference the window it lies in is played again with every
+    /// pose reported, to name the first update that differs. 1: every pose in full.
+    #[arg(long, value_name = "N", default_value_t = play::CHECK_EVERY,
+          value_parser = clap::value_parser!(u16).range(1..))]
+    pub check_every: u16,
     /// Print the outcome as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -129,6 +138,7 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             method,
             kind,
             stream: &stream,
+            check_every: a.check_every,
             progress: Some(&bar),
         },
     )?;
@@ -163,13 +173,23 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
         );
         println!(
             "board vs host  {} of {} updates bit-exact, {} mismatches{}",
-            o.board_updates - o.mismatches,
+            o.board_updates,
             o.expected_updates,
             o.mismatches,
             if o.integer_method {
                 " (integer method)"
             } else {
                 " (float method: same IEEE arithmetic, compared all the same)"
+            }
+        );
+        println!(
+            "checked        every update by its running digest; {} poses in full (every {}{})",
+            o.poses_reported,
+            o.check_every,
+            if o.check_every > 1 {
+                ", and the last window's"
+            } else {
+                ""
             }
         );
         if let Some(m) = &o.first_mismatch {
@@ -179,8 +199,13 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             );
         }
         println!(
-            "stream         {} events, {} wire bytes ({:.2} bytes/event), link {} bytes out / {} in",
-            o.events, o.wire_bytes, o.bytes_per_event, o.link_bytes_sent, o.link_bytes_received
+            "stream         {} events, {} wire bytes ({:.2} bytes/event), link {} bytes out / {} in at {} baud",
+            o.events,
+            o.wire_bytes,
+            o.bytes_per_event,
+            o.link_bytes_sent,
+            o.link_bytes_received,
+            o.baud
         );
         println!(
             "speed          {:.3} s played in {:.3} s wall ({:.2}x real time)",
@@ -199,10 +224,10 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             _ => println!("vs truth       the stream has no truth rows"),
         }
     }
-    if outcome.mismatches > 0 {
+    if let Some(m) = &outcome.first_mismatch {
         bail!(
-            "{} of {} updates differ between the board and the host",
-            outcome.mismatches,
+            "the board and the host differ from update {} of {} on",
+            m.update,
             outcome.expected_updates
         );
     }
@@ -434,6 +459,20 @@ pub struct VirtualBoardArgs {
     /// --drive-squares` asks for each square's measured end pose, as of a robot on the floor.
     #[arg(long)]
     pub no_truth: bool,
+    /// The fastest rate the USB-serial adapter carries (CH340: 2000000, CP2102N and FT232R:
+    /// 3000000): a switch to a faster one garbles every byte, and the host and the master
+    /// go back to 115200 [default: 4500000, the master's own limit].
+    #[arg(long, value_name = "BAUD")]
+    pub max_baud: Option<u32>,
+    /// The adapter's latency timer: bytes for the host wait this long for a USB packet to
+    /// fill (FTDI's default is 16 ms; Linux lets it be lowered to 1).
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub link_latency_ms: u32,
+    /// Fault injection, for the checks of `play`: the master's frames to the slave carry
+    /// played-event byte OFFSET with its lowest bit flipped under a valid check (a bug, not
+    /// noise: every time that byte passes).
+    #[arg(long, value_name = "OFFSET")]
+    pub fault_spi_event_bit: Option<u32>,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -496,6 +535,20 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         });
     }
     opts.send_truth = !a.no_truth;
+    if let Some(b) = a.max_baud {
+        if b < 9_600 {
+            bail!("--max-baud is the adapter's fastest rate, at least 9600: got {b}");
+        }
+        opts.adapter.max_baud = b;
+    }
+    if a.link_latency_ms > 1_000 {
+        bail!(
+            "--link-latency-ms is the adapter's latency timer, 0 to 1000 ms (FTDI: 16): got {}",
+            a.link_latency_ms
+        );
+    }
+    opts.adapter.latency = embassy_time::Duration::from_millis(a.link_latency_ms.into());
+    opts.faults.spi.event_bit = a.fault_spi_event_bit;
     if let Some(v) = a.course_speed {
         if !(v > 0.0 && v <= 1.0) {
             bail!("--course-speed is the robot's speed round its course, over 0 and at most 1 m/s: got {v}");

@@ -7,7 +7,7 @@ use std::collections::VecDeque;
 
 use anyhow::{bail, Result};
 use firmware_slave::played::{PlayKind, PlayedSensors, ReportSink};
-use protocol::spi::Report;
+use protocol::spi::{PoseChecks, Report};
 use robot_math::exact::FixedPose;
 use robot_math::odometry::{Layout, Method};
 
@@ -39,24 +39,32 @@ pub struct Expected<'s, 'a> {
 }
 
 impl<'s, 'a> Expected<'s, 'a> {
-    /// The reports of `stream` played from `start` with `method`.
+    /// The reports of `stream` played from `start` with `method`, one for every update (the
+    /// board reports some of them: [`report_of`](Self::report_of) passes over the rest).
     pub fn new(
         layout: &Layout,
         method: Method,
         stream: &'s PlayedStream<'a>,
         start: FixedPose,
     ) -> Result<Self> {
-        let engine = PlayedSensors::new(layout, method, stream.kind, stream.period_us, start)
-            .map_err(|e| {
-                anyhow::anyhow!(
-                    "--algorithm {} with --sensor {}: {e}",
-                    method.name(),
-                    match stream.kind {
-                        PlayKind::Ticks => "timestamps",
-                        PlayKind::Counts => "counts",
-                    }
-                )
-            })?;
+        let engine = PlayedSensors::new(
+            layout,
+            method,
+            stream.kind,
+            stream.period_us,
+            start,
+            PoseChecks::ALL,
+        )
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "--algorithm {} with --sensor {}: {e}",
+                method.name(),
+                match stream.kind {
+                    PlayKind::Ticks => "timestamps",
+                    PlayKind::Counts => "counts",
+                }
+            )
+        })?;
         Ok(Expected {
             engine,
             bytes: stream.bytes(),
@@ -64,6 +72,30 @@ impl<'s, 'a> Expected<'s, 'a> {
             used: 0,
             queue: Queue(VecDeque::with_capacity(AHEAD)),
         })
+    }
+
+    /// Update `update`'s report, each pose up to it handed to `seen` in order; `None` when
+    /// the stream ends before it (or it was passed already).
+    pub fn report_of(
+        &mut self,
+        update: u64,
+        mut seen: impl FnMut(&protocol::Pose),
+    ) -> Result<Option<Report>> {
+        while let Some(r) = self.next_report()? {
+            let Report::Pose {
+                update: u, pose, ..
+            } = r
+            else {
+                continue;
+            };
+            seen(&pose);
+            match u64::from(u).cmp(&update) {
+                std::cmp::Ordering::Less => {}
+                std::cmp::Ordering::Equal => return Ok(Some(r)),
+                std::cmp::Ordering::Greater => return Ok(None),
+            }
+        }
+        Ok(None)
     }
 
     /// The next update's report; `None` after the last.

@@ -7,7 +7,11 @@ use std::io::{ErrorKind, Read, Write};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
+use protocol::link::GbnReceiver;
 use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
+
+mod baud;
+use baud::REVIVE_AFTER;
 
 /// Frames to damage on the way out, by their index among the `Events` frames sent (0-based).
 #[derive(Clone, Debug, Default)]
@@ -41,12 +45,34 @@ pub struct Link {
     pub faults: Faults,
     /// How many times longer than a board at speed the host waits for this one.
     patience: u32,
+    /// The rate the port runs at, and the one asked for (`--baud`, bench.toml).
+    baud: u32,
+    baud_asked: u32,
+    /// What became of the switch to `baud_asked`, once tried.
+    pub baud_note: Option<String>,
+    /// What was done about the adapter's latency timer.
+    pub latency_note: Option<String>,
+    /// When the host last sent: a master left silent too long at a switched rate goes back to
+    /// its power-on rate.
+    last_sent: Instant,
+    /// When what was written so far will have left the line, at the port's rate.
+    line_free_at: Instant,
+    /// The board's report stream while a recording runs ([`Link::receive_reports`]).
+    reports: Option<Box<GbnReceiver<REPORTS_WINDOW>>>,
 }
 
+/// Report bytes the host takes in ahead of its reader (a recording's).
+pub const REPORTS_WINDOW: usize = 8192;
+
+/// The rate every master starts at and goes back to (`MasterConfig::baud`).
+pub const POWER_ON_BAUD: u32 = 115_200;
+
 impl Link {
-    /// Open `path` at `baud`, 8N1. A pseudo-terminal ignores the baud rate.
+    /// Open `path` at the power-on rate, 8N1; the session's handshake then switches to
+    /// `baud` ([`Link::switch_baud`]). A pseudo-terminal keeps the rate only as a setting,
+    /// which `virtual-board` reads back to model the line.
     pub fn open(path: &str, baud: u32) -> Result<Link> {
-        let port = serialport::new(path, baud)
+        let port = serialport::new(path, POWER_ON_BAUD)
             .timeout(Duration::from_millis(2))
             .open()
             .with_context(|| {
@@ -64,7 +90,49 @@ impl Link {
             stats: LinkStats::default(),
             faults: Faults::default(),
             patience: 1,
+            baud: POWER_ON_BAUD,
+            baud_asked: baud,
+            baud_note: None,
+            latency_note: super::adapter_latency::lower(path, std::path::Path::new("/sys")),
+            last_sent: Instant::now(),
+            line_free_at: Instant::now(),
+            reports: None,
         })
+    }
+
+    /// From now on take in the board's report stream (from offset 0: a new session) and
+    /// acknowledge it at once, whatever the caller is waiting for: a recording's first
+    /// records come while the host still waits for the board to confirm it started, and
+    /// unacknowledged they would fill the board's buffers and be dropped there.
+    pub fn receive_reports(&mut self) {
+        self.reports = Some(Box::new(GbnReceiver::new()));
+    }
+
+    /// The report bytes taken in since the last call, appended to `out`.
+    pub fn read_reports(&mut self, out: &mut Vec<u8>) {
+        if let Some(rx) = &mut self.reports {
+            let mut buf = [0u8; REPORTS_WINDOW];
+            let n = rx.read(&mut buf);
+            out.extend_from_slice(&buf[..n]);
+        }
+    }
+
+    /// How long what was written so far still takes on the line. A sender that writes more
+    /// than the line carries only builds a queue in the port and the adapter, where its
+    /// retransmissions wait behind it (go-back-N's timeout then fires for frames that were
+    /// never lost, and their copies queue too): `play` keeps this short.
+    pub fn backlog(&self) -> Duration {
+        self.line_free_at.saturating_duration_since(Instant::now())
+    }
+
+    /// The rate the port runs at now.
+    pub fn baud(&self) -> u32 {
+        self.baud
+    }
+
+    /// The rate asked for.
+    pub fn baud_asked(&self) -> u32 {
+        self.baud_asked
     }
 
     /// Wait `patience` times longer for the board (`--patience`).
@@ -83,7 +151,17 @@ impl Link {
     }
 
     /// Send one message as a frame (subject to the fault knobs if it is an `Events` frame).
+    /// After a silence long enough for the master to have gone back to its power-on rate,
+    /// meet it there and switch again first.
     pub fn send(&mut self, msg: &HostToMaster) -> Result<()> {
+        if self.baud != POWER_ON_BAUD && self.last_sent.elapsed() > REVIVE_AFTER {
+            self.revive()?;
+        }
+        self.send_now(msg)
+    }
+
+    fn send_now(&mut self, msg: &HostToMaster) -> Result<()> {
+        self.last_sent = Instant::now();
         let mut buf = [0u8; serial::MAX_FRAME];
         let frame = serial::encode(msg, &mut buf)
             .map_err(|e| anyhow::anyhow!("cannot encode {msg:?}: {e:?}"))?;
@@ -111,6 +189,9 @@ impl Link {
             .with_context(|| format!("writing to {}", self.name))?;
         self.stats.bytes_sent += frame.len() as u64;
         self.stats.frames_sent += 1;
+        let on_the_line =
+            Duration::from_nanos(frame.len() as u64 * 10_000_000_000 / self.baud as u64);
+        self.line_free_at = self.line_free_at.max(Instant::now()) + on_the_line;
         Ok(())
     }
 
@@ -141,6 +222,16 @@ impl Link {
         for &b in &buf[..n] {
             match self.decoder.push::<MasterToHost>(b) {
                 None => {}
+                Some(Ok(MasterToHost::Reports(frame))) if self.reports.is_some() => {
+                    self.stats.frames_received += 1;
+                    let ack = self.reports.as_mut().and_then(|rx| {
+                        rx.on_data(&frame);
+                        rx.poll_ack()
+                    });
+                    if let Some(a) = ack {
+                        self.send_now(&HostToMaster::ReportsAck(a))?;
+                    }
+                }
                 Some(Ok(m)) => {
                     self.stats.frames_received += 1;
                     self.inbox.push_back(m);
@@ -149,5 +240,11 @@ impl Link {
             }
         }
         Ok(())
+    }
+}
+
+impl Drop for Link {
+    fn drop(&mut self) {
+        self.switch_back();
     }
 }

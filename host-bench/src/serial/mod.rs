@@ -4,6 +4,7 @@
 //! checked bit for bit against the host's, [`expected`]) and [`record`] (real encoders into a
 //! tick stream).
 
+pub mod adapter_latency;
 pub mod drive;
 pub mod expected;
 pub mod link;
@@ -11,4 +12,5 @@ pub mod play;
 pub mod played_stream;
 pub mod record;
 pub mod reports;
+pub mod scorer;
 pub mod session;

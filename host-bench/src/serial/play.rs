@@ -14,7 +14,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use firmware_slave::played::PlayKind;
 use protocol::link::{GbnReceiver, GbnSender, DEFAULT_TIMEOUT_US};
 use protocol::serial::{status as serial_status, HostToMaster, MasterToHost};
-use protocol::spi::{Report, Reports, SensorSource};
+use protocol::spi::{PoseChecks, Report, Reports, SensorSource};
 use robot_math::exact::FixedPose;
 use robot_math::odometry::Method;
 use robot_math::Pose2;
@@ -23,11 +23,15 @@ use serde::Serialize;
 use super::expected::Expected;
 use super::link::Link;
 use super::played_stream::{self, PlayedStream};
+use super::scorer::Scorer;
 use super::session;
 use crate::formats::robot::Robot;
 
 /// Host-side event buffer: bytes offered to the link ahead of the master's credit.
 const SEND_BUFFER: usize = 16 * 1024;
+/// How much written and not yet on the line `play` allows: enough to keep the line busy
+/// between two turns of its loop, little enough that an acknowledgement is not held up.
+const LINE_AHEAD: Duration = Duration::from_millis(4);
 /// No progress for this long means the board stopped playing. Progress is an update reported
 /// or event bytes acknowledged that were not before: a board that keeps talking (telemetry,
 /// the same acknowledgement again) without either is stuck all the same.
@@ -52,13 +56,22 @@ pub struct PlayOutcome {
     pub sensor: String,
     pub events: u64,
     pub samples: u64,
+    /// Updates the board is known to have computed as the host did: all of them up to its
+    /// last report that matched (each report's digest covers every update before it).
     pub board_updates: u64,
     pub expected_updates: u64,
     pub mismatches: u64,
     pub first_mismatch: Option<Mismatch>,
+    /// The board reported every `check_every`-th pose in full (and every pose of the last
+    /// window): the rest are checked by the running digest.
+    pub check_every: u16,
+    pub poses_reported: u64,
     /// Bytes of the event stream (what the slave decodes).
     pub wire_bytes: u64,
     pub bytes_per_event: f64,
+    /// The link's rate during the play, and what the host asked for.
+    pub baud: u32,
+    pub baud_asked: u32,
     /// Everything the host put on the serial line (framing, acks, retransmissions).
     pub link_bytes_sent: u64,
     pub link_bytes_received: u64,
@@ -84,11 +97,25 @@ pub struct PlayRequest<'a> {
     pub method: Method,
     pub kind: PlayKind,
     pub stream: &'a crate::formats::tickstream::TickStream,
+    /// Report every this many updates in full (1: all of them).
+    pub check_every: u16,
     pub progress: Option<&'a indicatif::ProgressBar>,
 }
 
+/// Updates between the poses a play reports in full, by default: a pose report every 50 ms
+/// of played time at 1 kHz, about 0.3 bytes an update on the link instead of 24.
+pub const CHECK_EVERY: u16 = 50;
+
 fn wire_pose(p: Pose2) -> protocol::Pose {
     protocol::Pose::from_si(p.x, p.y, p.theta)
+}
+
+/// Where the last window starts: the updates after the last multiple of `every` that no
+/// later report closes, reported one by one so the end of the stream is checked too.
+fn last_window(updates: u64, every: u16) -> u32 {
+    let every = u64::from(every.max(1));
+    let closed = (updates.saturating_sub(1) / every) * every;
+    u32::try_from(closed + 1).unwrap_or(u32::MAX)
 }
 
 /// Play `req` to the boards on `link`.
@@ -104,134 +131,54 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
     // Both sides start from the micrometre pose on the wire.
     let start_wire = wire_pose(stream.start());
     let start = FixedPose::from_micrometres(start_wire.x_um, start_wire.y_um, start_wire.heading.0);
-    let mut expected = Expected::new(&layout, req.method, &stream, start)?;
+    // The method is checked against the stream before the board is asked.
+    Expected::new(&layout, req.method, &stream, start)?;
     let fingerprint = session::load_robot(link, &layout)?;
-    let source = match req.kind {
-        PlayKind::Ticks => SensorSource::PlayedTicks,
-        PlayKind::Counts => SensorSource::PlayedCounts,
+    let every = req.check_every.max(1);
+    let plan = Pass {
+        layout: &layout,
+        method: req.method,
+        stream: &stream,
+        start_wire,
+        start,
+        checks: PoseChecks {
+            every,
+            all_from: last_window(stream.updates, every),
+        },
+        until: stream.updates,
+        progress: req.progress,
     };
-    session::set_method_and_source(link, req.method, source, Reports::Poses, start_wire)?;
-    // A new session now that the slave's streams restarted: report bytes of an earlier stream
-    // (a play interrupted, its reports never acknowledged) that the master took in before the
-    // slave switched are dropped with the old session, not read as the start of this play's.
-    session::hello(link)?;
-
     let wall = Instant::now();
-    let clock = |w: Instant| w.elapsed().as_micros() as u64;
-    let resend_us = link
-        .wait(Duration::from_micros(DEFAULT_TIMEOUT_US))
-        .as_micros() as u64;
-    let mut tx: GbnSender<SEND_BUFFER> = GbnSender::new(resend_us);
-    let mut rx: GbnReceiver<4096> = GbnReceiver::new();
-    let mut wire = stream.bytes();
-    // Bytes made and not yet taken by the sender: `out[out_at..]`.
-    let mut out: Vec<u8> = Vec::with_capacity(SEND_BUFFER);
-    let mut out_at = 0usize;
-    let mut offered = 0u64;
-    let mut report_bytes: Vec<u8> = Vec::new();
-    let mut updates = 0u64;
-    let mut mismatches = 0u64;
-    let mut first_mismatch = None;
-    let mut scorer = Scorer::new(stream.truth(), stream.period_us, start.to_pose2());
-    let mut progress = Progress::new(link);
-    if let Some(bar) = req.progress {
-        bar.set_length(stream.updates);
-    }
-    while updates < stream.updates {
-        if out_at == out.len() {
-            out.clear();
-            out_at = 0;
-            wire.fill(&mut out, SEND_BUFFER)?;
-        }
-        let n = tx.offer(&out[out_at..]);
-        out_at += n;
-        offered += n as u64;
-        while let Some(frame) = tx.poll_transmit(clock(wall)) {
-            link.send(&HostToMaster::Events(frame))?;
-        }
-        progress.see(updates, offered - tx.unacked() as u64, link);
-        if progress.since.elapsed() > link.wait(STALL) {
-            bail!(
-                "{} for {} s, after {updates} of {} updates ({} of {} event bytes \
-                 acknowledged)",
-                progress.stuck_how(link),
-                link.wait(STALL).as_secs(),
-                stream.updates,
-                progress.acked,
-                stream.wire_bytes
-            );
-        }
-        let Some(msg) = link.recv(Duration::from_millis(5))? else {
-            continue;
-        };
-        match msg {
-            MasterToHost::EventsAck(a) => tx.on_ack(a, clock(wall)),
-            MasterToHost::Reports(frame) => {
-                rx.on_data(&frame);
-                let mut buf = [0u8; 4096];
-                let n = rx.read(&mut buf);
-                report_bytes.extend_from_slice(&buf[..n]);
-            }
-            MasterToHost::Rejected(r) => bail!("the master rejected a command: {r:?}"),
-            MasterToHost::Telemetry(t) if t.status & serial_status::SLAVE_RESET != 0 => bail!(
-                "the slave reset after {updates} of {} updates: it started again from \
-                 power-on, so this play is void (play it again)",
-                stream.updates
-            ),
-            _ => {}
-        }
-        if let Some(a) = rx.poll_ack() {
-            link.send(&HostToMaster::ReportsAck(a))?;
-        }
-        // Whole records only; a partial one waits for its remaining bytes.
-        let mut rest: &[u8] = &report_bytes;
-        loop {
-            let r = match postcard::take_from_bytes::<Report>(rest) {
-                Ok((r, tail)) => {
-                    rest = tail;
-                    r
-                }
-                Err(postcard::Error::DeserializeUnexpectedEnd) => break,
-                Err(e) => bail!(
-                    "after {updates} updates the board's reports cannot be read ({e}): not \
-                     the records this play's slave writes"
-                ),
-            };
-            match r {
-                Report::Pose { pose, .. } => {
-                    updates += 1;
-                    let want = expected.next_report()?;
-                    if want.as_ref() != Some(&r) {
-                        mismatches += 1;
-                        first_mismatch.get_or_insert_with(|| Mismatch {
-                            update: updates,
-                            board: format!("{r:?}"),
-                            host: format!("{want:?}"),
-                        });
-                    }
-                    let (x, y, th) = pose.to_si();
-                    scorer.push(Pose2::new(x, y, th));
-                }
-                Report::BadEvents { offset } => {
-                    bail!("the slave could not decode the event stream at byte {offset}")
-                }
-                _ => {}
-            }
-        }
-        let consumed = report_bytes.len() - rest.len();
-        report_bytes.drain(..consumed);
-        if let Some(bar) = req.progress {
-            bar.set_position(updates);
-        }
-    }
-    if updates == stream.updates && expected.next_report()?.is_some() {
-        bail!(
-            "the host's own decoder makes more than the {} updates counted from the stream: a \
-             host bug",
-            stream.updates
-        );
-    }
+    let mut run = plan.run(link)?;
     let wall_seconds = wall.elapsed().as_secs_f64();
+    let frames_resent = run.frames_resent;
+    if let Some(bad) = run.first_bad.take() {
+        // A report's digest covers every update before it: the first to differ lies after
+        // the last report that matched. Play the stream again with every update of that
+        // window reported in full, to name it (the board computes what it did before: the
+        // same integer code on the same bytes).
+        let window = Pass {
+            checks: PoseChecks {
+                every,
+                all_from: u32::try_from(run.good + 1).unwrap_or(u32::MAX),
+            },
+            until: bad.update,
+            progress: None,
+            ..plan
+        };
+        let again = window.run(link)?;
+        run.good = run.good.max(again.good);
+        run.first_bad = Some(again.first_bad.unwrap_or(Mismatch {
+            host: format!(
+                "{} (played again with every update from {} reported, the board matched the \
+                 host up to update {}: it does not compute the same every time)",
+                bad.host,
+                run.good + 1,
+                again.good
+            ),
+            ..bad
+        }));
+    }
     // Leave the board as it was: its power-on robot back if it had it, its own sensors.
     let power_on = robot_math::odometry::Layout::SEED_004;
     if info.robot == firmware_slave::robot_wire::layout_fingerprint(&power_on) {
@@ -244,8 +191,8 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         Reports::Off,
         protocol::Pose::default(),
     );
-    let (final_error_m, max_error_m, scored_rows) = scorer.finish();
-    let played_seconds = updates as f64 * stream.period_us as f64 * 1e-6;
+    let (final_error_m, max_error_m, scored_rows) = run.scores;
+    let played_seconds = run.good as f64 * stream.period_us as f64 * 1e-6;
     Ok(PlayOutcome {
         port: link.name().to_string(),
         robot: req.robot.name.clone(),
@@ -258,18 +205,22 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         },
         events: stream.events,
         samples: stream.samples,
-        board_updates: updates,
+        board_updates: run.good,
         expected_updates: stream.updates,
-        mismatches,
-        first_mismatch,
+        mismatches: u64::from(run.first_bad.is_some()),
+        first_mismatch: run.first_bad,
+        check_every: every,
+        poses_reported: run.reports,
         wire_bytes: stream.wire_bytes,
         bytes_per_event: stream.wire_bytes as f64 / stream.events.max(1) as f64,
+        baud: link.baud(),
+        baud_asked: link.baud_asked(),
         link_bytes_sent: link.stats.bytes_sent,
         link_bytes_received: link.stats.bytes_received,
         frames_corrupted: link.stats.events_frames_corrupted,
         frames_dropped: link.stats.events_frames_dropped,
         frames_rejected_by_host: link.stats.frames_rejected,
-        frames_resent: tx.stats().frames_retransmitted.into(),
+        frames_resent,
         played_seconds,
         wall_seconds,
         played_per_wall_second: played_seconds / wall_seconds.max(1e-9),
@@ -278,6 +229,183 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         final_error_m,
         max_error_m,
     })
+}
+
+/// One pass of the stream through the boards, from the start, up to update `until`.
+#[derive(Clone, Copy)]
+struct Pass<'p, 's, 'a> {
+    layout: &'p robot_math::odometry::Layout,
+    method: Method,
+    stream: &'s PlayedStream<'a>,
+    /// Where odometry starts, as the wire carries it, and as both sides start from it.
+    start_wire: protocol::Pose,
+    start: FixedPose,
+    checks: PoseChecks,
+    until: u64,
+    progress: Option<&'p indicatif::ProgressBar>,
+}
+
+/// What a pass showed.
+struct Passed {
+    /// The last update the board's reports proved the same as the host's.
+    good: u64,
+    /// The first report that differed.
+    first_bad: Option<Mismatch>,
+    reports: u64,
+    frames_resent: u64,
+    scores: (Option<f64>, Option<f64>, usize),
+}
+
+impl Pass<'_, '_, '_> {
+    fn run(&self, link: &mut Link) -> Result<Passed> {
+        let stream = self.stream;
+        // The host's own reports: every update's, with the digest running through them all.
+        let mut expected = Expected::new(self.layout, self.method, stream, self.start)?;
+        let source = match stream.kind {
+            PlayKind::Ticks => SensorSource::PlayedTicks,
+            PlayKind::Counts => SensorSource::PlayedCounts,
+        };
+        session::set_method_and_source(
+            link,
+            self.method,
+            source,
+            Reports::Poses(self.checks),
+            self.start_wire,
+        )?;
+        // A new session now that the slave's streams restarted: report bytes of an earlier
+        // stream (a play interrupted, its reports never acknowledged) that the master took in
+        // before the slave switched are dropped with the old session, not read as this one's.
+        session::hello(link)?;
+
+        let wall = Instant::now();
+        let clock = |w: Instant| w.elapsed().as_micros() as u64;
+        let resend_us = link
+            .wait(Duration::from_micros(DEFAULT_TIMEOUT_US))
+            .as_micros() as u64;
+        let mut tx: GbnSender<SEND_BUFFER> = GbnSender::new(resend_us);
+        let mut rx: GbnReceiver<4096> = GbnReceiver::new();
+        let mut wire = stream.bytes();
+        // Bytes made and not yet taken by the sender: `out[out_at..]`.
+        let mut out: Vec<u8> = Vec::with_capacity(SEND_BUFFER);
+        let mut out_at = 0usize;
+        let mut offered = 0u64;
+        let mut report_bytes: Vec<u8> = Vec::new();
+        let mut good = 0u64;
+        let mut reports = 0u64;
+        let mut first_bad = None;
+        let mut scorer = Scorer::new(stream.truth(), stream.period_us, self.start.to_pose2());
+        let mut progress = Progress::new(link);
+        if let Some(bar) = self.progress {
+            bar.set_length(self.until);
+        }
+        while good < self.until && first_bad.is_none() {
+            if out_at == out.len() {
+                out.clear();
+                out_at = 0;
+                wire.fill(&mut out, SEND_BUFFER)?;
+            }
+            let n = tx.offer(&out[out_at..]);
+            out_at += n;
+            offered += n as u64;
+            // No more than the line carries in a few milliseconds waits to go out.
+            while link.backlog() < LINE_AHEAD {
+                let Some(frame) = tx.poll_transmit(clock(wall)) else {
+                    break;
+                };
+                link.send(&HostToMaster::Events(frame))?;
+            }
+            progress.see(good, offered - tx.unacked() as u64, link);
+            if progress.since.elapsed() > link.wait(STALL) {
+                bail!(
+                    "{} for {} s, after {good} of {} updates ({} of {} event bytes \
+                     acknowledged)",
+                    progress.stuck_how(link),
+                    link.wait(STALL).as_secs(),
+                    stream.updates,
+                    progress.acked,
+                    stream.wire_bytes
+                );
+            }
+            let Some(msg) = link.recv(Duration::from_millis(5))? else {
+                continue;
+            };
+            match msg {
+                MasterToHost::EventsAck(a) => tx.on_ack(a, clock(wall)),
+                MasterToHost::Reports(frame) => {
+                    rx.on_data(&frame);
+                    let mut buf = [0u8; 4096];
+                    let n = rx.read(&mut buf);
+                    report_bytes.extend_from_slice(&buf[..n]);
+                }
+                MasterToHost::Rejected(r) => bail!("the master rejected a command: {r:?}"),
+                MasterToHost::Telemetry(t) if t.status & serial_status::SLAVE_RESET != 0 => bail!(
+                    "the slave reset after {good} of {} updates: it started again from \
+                     power-on, so this play is void (play it again)",
+                    stream.updates
+                ),
+                _ => {}
+            }
+            if let Some(a) = rx.poll_ack() {
+                link.send(&HostToMaster::ReportsAck(a))?;
+            }
+            // Whole records only; a partial one waits for its remaining bytes.
+            let mut rest: &[u8] = &report_bytes;
+            while first_bad.is_none() {
+                let r = match postcard::take_from_bytes::<Report>(rest) {
+                    Ok((r, tail)) => {
+                        rest = tail;
+                        r
+                    }
+                    Err(postcard::Error::DeserializeUnexpectedEnd) => break,
+                    Err(e) => bail!(
+                        "after {good} updates the board's reports cannot be read ({e}): not \
+                         the records this play's slave writes"
+                    ),
+                };
+                match r {
+                    Report::Pose { update, .. } => {
+                        reports += 1;
+                        let want = expected.report_of(u64::from(update), |p| {
+                            let (x, y, th) = p.to_si();
+                            scorer.push(Pose2::new(x, y, th));
+                        })?;
+                        if want.as_ref() == Some(&r) {
+                            good = u64::from(update);
+                        } else {
+                            first_bad = Some(Mismatch {
+                                update: u64::from(update),
+                                board: format!("{r:?}"),
+                                host: want.map_or("no such update".into(), |w| format!("{w:?}")),
+                            });
+                        }
+                    }
+                    Report::BadEvents { offset } => {
+                        bail!("the slave could not decode the event stream at byte {offset}")
+                    }
+                    _ => {}
+                }
+            }
+            let consumed = report_bytes.len() - rest.len();
+            report_bytes.drain(..consumed);
+            if let Some(bar) = self.progress {
+                bar.set_position(good);
+            }
+        }
+        if good == stream.updates && expected.report_of(good + 1, |_| {})?.is_some() {
+            bail!(
+                "the host's own decoder makes more than the {} updates counted from the \
+                 stream: a host bug",
+                stream.updates
+            );
+        }
+        Ok(Passed {
+            good,
+            first_bad,
+            reports,
+            frames_resent: tx.stats().frames_retransmitted.into(),
+            scores: scorer.finish(),
+        })
+    }
 }
 
 /// When the play last moved on: an update more, or event bytes acknowledged that were not.
@@ -317,80 +445,6 @@ impl Progress {
                  no event acknowledged that was not before"
             ),
         }
-    }
-}
-
-/// Error of the board's poses against the truth rows, as the poses come: the board's pose at a
-/// row's instant is interpolated between the two updates around it (the start pose before the
-/// first); a row past the last update is not scored.
-struct Scorer<I: Iterator<Item = (u64, Pose2)>> {
-    truth: std::iter::Peekable<I>,
-    period_ns: f64,
-    /// The last two poses (update `poses - 2` and `poses - 1`; the start is pose 0).
-    before: Pose2,
-    last: Pose2,
-    poses: usize,
-    final_error: Option<f64>,
-    max: f64,
-    rows: usize,
-}
-
-impl<I: Iterator<Item = (u64, Pose2)>> Scorer<I> {
-    /// `truth` rows (ns from the start, in order) against updates every `period_us`.
-    fn new(truth: I, period_us: u32, start: Pose2) -> Self {
-        Scorer {
-            truth: truth.peekable(),
-            period_ns: period_us as f64 * 1e3,
-            before: start,
-            last: start,
-            poses: 1,
-            final_error: None,
-            max: 0.0,
-            rows: 0,
-        }
-    }
-
-    /// The pose of the next update.
-    fn push(&mut self, pose: Pose2) {
-        self.before = self.last;
-        self.last = pose;
-        self.poses += 1;
-        // Rows between the two last poses (the earlier ones were scored at the pose before).
-        self.score_until(self.poses - 1, true);
-    }
-
-    /// Score the rows before pose `end`'s instant, between the last two poses (else at the
-    /// last pose).
-    fn score_until(&mut self, end: usize, between: bool) {
-        while let Some(&(t_ns, truth)) = self.truth.peek() {
-            let k = t_ns as f64 / self.period_ns;
-            if k.floor() as usize >= end {
-                return;
-            }
-            self.truth.next();
-            let (a, b) = if between {
-                (self.before, self.last)
-            } else {
-                (self.last, self.last)
-            };
-            let f = k - k.floor();
-            let est = Pose2::new(a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f, a.theta);
-            let e = est.distance_to(truth);
-            self.max = self.max.max(e);
-            self.final_error = Some(e);
-            self.rows += 1;
-        }
-    }
-
-    /// The final and largest error, and the rows scored; the rows up to the next period after
-    /// the last update are scored at its pose.
-    fn finish(mut self) -> (Option<f64>, Option<f64>, usize) {
-        self.score_until(self.poses, false);
-        (
-            self.final_error,
-            self.final_error.map(|_| self.max),
-            self.rows,
-        )
     }
 }
 

@@ -17,13 +17,19 @@ const ANSWER_TIMEOUT: Duration = Duration::from_secs(3);
 
 /// Say hello until the master answers (a new session: both streams restart); refuse another
 /// protocol version or schema.
+/// Then switch the link to the rate asked for, once ([`Link::switch_baud`]).
 pub fn hello(link: &mut Link) -> Result<BoardInfo> {
-    ask(
+    let info = ask(
         link,
         &HostToMaster::Hello {
             protocol_version: PROTOCOL_VERSION,
         },
-    )
+    )?;
+    link.switch_baud(info.baud)?;
+    Ok(BoardInfo {
+        baud: link.baud(),
+        ..info
+    })
 }
 
 /// The board info now, without restarting the session's streams.

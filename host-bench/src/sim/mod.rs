@@ -1,6 +1,7 @@
 //! Simulation: the robot (plant), the seed trajectories, the exact tick generator, and the
 //! emulator that runs both boards' firmware against the plant on virtual time.
 
+pub mod adapter;
 pub mod emulator;
 pub mod generate;
 pub mod misbehaving;

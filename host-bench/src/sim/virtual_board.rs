@@ -40,6 +40,7 @@ use robot_math::{Pose2, Twist};
 use serialport::TTYPort;
 use virtual_time::Simulation;
 
+use super::adapter::Adapter;
 use super::emulator::hw::*;
 use super::plant::{MeasuringSensors, Plant, PlantConfig};
 use super::serial_noise::{Receiver, SerialFaults, SerialNoise};
@@ -85,6 +86,9 @@ pub struct Options {
     /// Whether the board sends the host its truth (`SimTruth`); without it, it is as a real
     /// board, and a recording has no truth rows.
     pub send_truth: bool,
+    /// The USB-serial adapter between the pseudo-terminal and the master: its top rate and
+    /// latency timer.
+    pub adapter: super::adapter::AdapterSpec,
 }
 
 /// A robot's driven wheels and their motors, as they really are.
@@ -115,6 +119,7 @@ impl Options {
             true_layout: None,
             master_drives: None,
             send_truth: true,
+            adapter: super::adapter::AdapterSpec::default(),
         }
     }
 }
@@ -311,8 +316,10 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     let mut noise_to_host = SerialNoise::new(f.serial, opts.seed ^ 0x5e1b, Receiver::Host);
     let mut misbehaving = f.misbehave.map(super::misbehaving::MisbehavingLine::new);
     let to_master: SharedLine = Rc::default();
-    let to_host: SharedLine = Rc::default();
-    let byte_time = byte_time(opts.master.baud);
+    let to_host: SharedLine = Rc::new(RefCell::new(UartLine::with_rates()));
+    // The master's USART rate (it changes when the host negotiates), and the adapter.
+    let master_rate: SharedRate = Rc::new(core::cell::Cell::new(opts.master.baud));
+    let mut adapter = Adapter::new(opts.adapter);
     let mut sim = Simulation::new()?;
     sim.spawn(super::emulator::slave_board(
         &plant,
@@ -326,11 +333,11 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
     ));
     let bus = || EmuMasterBus {
         wire: wire.clone(),
-        transfer_time: spi_transfer_time(2_250_000),
+        transfer_time: spi_transfer_time(protocol::spi::SPI_CLOCK_HZ),
     };
     let uart_tx = || UartTx {
         line: to_host.clone(),
-        byte_time,
+        rate: master_rate.clone(),
         noise: None,
     };
     // The master's motor outputs: to the wheels, or nowhere (the course pushes the robot).
@@ -390,21 +397,33 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
                 .advance((next - now).as_micros() as f64 * 1e-6, 100e-6);
             sim.run_until(next);
         }
-        // Host -> master: whatever the pty has.
+        // The rate the host set on its end of the line, and the master's.
+        let host_rate = serialport::SerialPort::baud_rate(&pty).unwrap_or(0);
+        let rate = master_rate.get();
+        let now = sim.now();
+        // Host -> master: whatever the pty has, through the adapter at the line's pace.
         match pty.read(&mut buf) {
-            Ok(n) if n > 0 => to_master
-                .borrow_mut()
-                .deliver(&noise_to_master.pass(&buf[..n])),
+            Ok(n) if n > 0 => adapter.from_host(&buf[..n]),
             Ok(_) => {}
             Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
             Err(e) if e.kind() == ErrorKind::Interrupted => {}
             Err(e) => return Err(e).context("reading the pseudo-terminal"),
         }
-        // Master -> host, and the truth every 10 ms.
-        let mut out = to_host.borrow_mut().take_all();
-        if let Some(fp) = opts.faults.schema {
-            out = with_schema(&mut rewrite, &out, fp);
+        let arrived = adapter.to_master(now, host_rate, rate);
+        if !arrived.is_empty() {
+            to_master
+                .borrow_mut()
+                .deliver(&noise_to_master.pass(&arrived));
         }
+        // Master -> host, and the truth every 10 ms.
+        // Each run as sent, at the rate the master's USART ran at then.
+        for (sent_at, mut out) in to_host.borrow_mut().take_runs(rate) {
+            if let Some(fp) = opts.faults.schema {
+                out = with_schema(&mut rewrite, &out, fp);
+            }
+            adapter.from_master(now, &out, host_rate, sent_at);
+        }
+        let mut out = Vec::new();
         if opts.send_truth && sim.now() >= next_truth {
             next_truth = sim.now() + Duration::from_millis(10);
             let b = plant.borrow().body();
@@ -417,7 +436,8 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
                 out.extend_from_slice(frame);
             }
         }
-        let mut out = noise_to_host.pass(&out);
+        adapter.from_board(now, &out);
+        let mut out = noise_to_host.pass(&adapter.to_host(now));
         if let Some(line) = &mut misbehaving {
             out = line.pass(&out);
             if line.hung_up() {

@@ -13,8 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use protocol::events::EventDecoder;
-use protocol::link::GbnReceiver;
-use protocol::serial::{status as serial_status, HostToMaster, MasterToHost};
+use protocol::serial::{status as serial_status, MasterToHost};
 use protocol::spi::{Reports, SensorSource};
 use serde::Serialize;
 
@@ -49,6 +48,8 @@ pub struct RecordOutcome {
     pub board_poses_file: String,
     pub sensor: String,
     pub seconds: f64,
+    /// Encoder edges recorded, each with its time stamp (`ticks` under its older name).
+    pub edges: u64,
     pub ticks: u64,
     pub abs_readings: u64,
     pub truth_rows: u64,
@@ -57,6 +58,12 @@ pub struct RecordOutcome {
     /// stream has gaps there, reported in its comments.
     pub lost_events: u64,
     pub lost_updates: u64,
+    /// Spans of the recording with events missing (the link lost them, or records were
+    /// passed over), each a `# GAP` comment in the stream.
+    pub gaps: u64,
+    /// The link's rate during the recording, and what the host asked for.
+    pub baud: u32,
+    pub baud_asked: u32,
     /// Report records that did not decode, passed over; and the `Sensors` records after
     /// them that were passed over until the slave's event code started again (at most a
     /// board pose's interval, 50 updates). The stream's comments say so.
@@ -160,6 +167,9 @@ pub fn record_moving(
     // A simulated board knows where the robot is: start the board's odometry there, so its
     // poses compare with the truth. A real board starts at the origin.
     let start = latest_truth(link)?.unwrap_or_default();
+    // The link takes the report stream in from its first byte, while the switch is still
+    // being confirmed.
+    link.receive_reports();
     session::set_method_and_source(
         link,
         method,
@@ -179,7 +189,6 @@ pub fn record_moving(
     signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone())
         .context("installing the Ctrl-C handler")?;
     let wall = Instant::now();
-    let mut rx: GbnReceiver<8192> = GbnReceiver::new();
     let mut reports = ReportReader::default();
     let mut c = Collected::new(has_abs);
     let mut edges = EventDecoder::new();
@@ -236,23 +245,19 @@ pub fn record_moving(
                 Err(e) => break Err(Early::new("motion", format!("{e:#}"))),
             }
         }
-        let Some(msg) = msg else { continue };
+        let mut taken = Vec::new();
+        link.read_reports(&mut taken);
+        reports.push(&taken);
         match msg {
-            MasterToHost::Reports(frame) => {
-                rx.on_data(&frame);
-                let mut buf = [0u8; 8192];
-                let n = rx.read(&mut buf);
-                reports.push(&buf[..n]);
-            }
             // The slave started again from power-on: its clock, pose and settings are new,
             // so what comes after does not continue this recording.
-            MasterToHost::Telemetry(t) if t.status & serial_status::SLAVE_RESET != 0 => {
+            Some(MasterToHost::Telemetry(t)) if t.status & serial_status::SLAVE_RESET != 0 => {
                 break Err(Early::new(
                     "slave reset",
                     "the slave reset (it started again from power-on)",
                 ));
             }
-            MasterToHost::SimTruth { t_us, pose } => {
+            Some(MasterToHost::SimTruth { t_us, pose }) => {
                 let t_ns = match board_ns(t_us, "a true pose's time stamp (SimTruth.t_us)") {
                     Ok(t) => t,
                     Err(e) => break Err(Early::new("bad value", e)),
@@ -267,14 +272,6 @@ pub fn record_moving(
                 c.truth += 1;
             }
             _ => {}
-        }
-        if let Some(a) = rx.poll_ack() {
-            if let Err(e) = link.send(&HostToMaster::ReportsAck(a)) {
-                break Err(Early::new(
-                    "port failure",
-                    format!("the port failed: {e:#}"),
-                ));
-            }
         }
         match take_reports(&mut reports, &mut c, &mut edges) {
             Ok(0) => {}
@@ -313,6 +310,7 @@ pub fn record_moving(
     };
     let mut outcome = written?;
     outcome.switch_back_failed = switch_back_failed;
+    (outcome.baud, outcome.baud_asked) = (link.baud(), link.baud_asked());
     Ok(outcome)
 }
 

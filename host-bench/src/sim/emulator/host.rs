@@ -411,8 +411,9 @@ async fn read_loop(mut rx: impl Read, log: Rc<RefCell<HostLog>>) {
                         MasterToHost::Rejected(r) => {
                             l.problem = Some(format!("master rejected a command: {r:?}"))
                         }
-                        // This session neither plays nor records.
-                        MasterToHost::Reports(_)
+                        // This session neither plays nor records, nor asks for another rate.
+                        MasterToHost::BaudSet { .. }
+                        | MasterToHost::Reports(_)
                         | MasterToHost::EventsAck(_)
                         | MasterToHost::SimTruth { .. } => {}
                     }

@@ -204,6 +204,10 @@ pub struct SpiFaults {
     /// other duplicate and no delayed frame: the master clocks every bit, so a late slave
     /// shows as this, or as an idle line, which is `drop`.)
     pub duplicate: f64,
+    /// Not noise but a bug: every master frame that carries played-event byte `event_bit`
+    /// reaches the slave with that byte's lowest bit flipped, under a valid check, so the
+    /// slave computes something else than the host (what `play`'s checks must catch).
+    pub event_bit: Option<u32>,
 }
 
 /// What the wire did to the frames.
@@ -350,6 +354,7 @@ impl SlaveBus for EmuMasterBus {
             drop,
             torn,
             duplicate,
+            ..
         } = w.faults;
         if let Some((again, seen)) = w.last_from_slave.filter(|_| w.happens(duplicate)) {
             w.injected.duplicated += 1;
@@ -379,6 +384,9 @@ impl SlaveBus for EmuMasterBus {
             Some(mut bytes) => {
                 let sent = bytes;
                 let mut to_slave = *tx;
+                if let Some(at) = w.faults.event_bit {
+                    flip_event_bit(&mut to_slave, at);
+                }
                 // Which directions the wire changed. A frame it left alone is the sender's own
                 // `spi::encode`, which always decodes (the protocol's round-trip and canonical
                 // proptests), so only changed frames are classified: decoding every frame
@@ -427,11 +435,30 @@ impl SlaveBus for EmuMasterBus {
     }
 }
 
+/// `frame` (a master frame) with played-event byte `at` flipped in its lowest bit and its
+/// check made good again, if it carries that byte.
+fn flip_event_bit(frame: &mut [u8; SPI_FRAME_LEN], at: u32) {
+    use protocol::spi::MasterFrame;
+    let Ok(mut f) = protocol::spi::decode::<MasterFrame>(frame) else {
+        return;
+    };
+    let i = at.wrapping_sub(f.events.offset) as usize;
+    let mut bytes = f.events.bytes.as_slice().to_vec();
+    if let Some(b) = bytes.get_mut(i) {
+        *b ^= 1;
+        f.events.bytes = protocol::Bytes::from_slice_truncating(&bytes);
+        *frame = protocol::spi::encode(&f);
+    }
+}
+
 /// One direction of a UART: bytes appear at the far end after their time on the wire.
 #[derive(Default)]
 pub struct UartLine {
     bytes: VecDeque<u8>,
     reader: Option<Waker>,
+    /// The rate each run of `bytes` was sent at, for a reader outside the emulation that
+    /// models the far end's rate ([`UartLine::with_rates`]); not kept otherwise.
+    rates: Option<VecDeque<(u32, usize)>>,
 }
 
 pub type SharedLine = Rc<RefCell<UartLine>>;
@@ -449,6 +476,28 @@ impl UartLine {
     pub fn take_all(&mut self) -> Vec<u8> {
         self.bytes.drain(..).collect()
     }
+
+    /// A line that keeps the rate its bytes were sent at ([`UartLine::take_runs`]).
+    pub fn with_rates() -> UartLine {
+        UartLine {
+            rates: Some(VecDeque::new()),
+            ..UartLine::default()
+        }
+    }
+
+    /// Everything that has landed, in runs sent at one rate each (all at `fallback` on a
+    /// line that keeps no rates).
+    pub fn take_runs(&mut self, fallback: u32) -> Vec<(u32, Vec<u8>)> {
+        let mut runs = Vec::new();
+        for (rate, n) in self.rates.as_mut().map(std::mem::take).unwrap_or_default() {
+            let n = n.min(self.bytes.len());
+            runs.push((rate, self.bytes.drain(..n).collect()));
+        }
+        if !self.bytes.is_empty() {
+            runs.push((fallback, self.bytes.drain(..).collect()));
+        }
+        runs
+    }
 }
 
 /// Time one byte takes at `baud` with 8N1 framing (10 bits).
@@ -456,10 +505,21 @@ pub fn byte_time(baud: u32) -> Duration {
     Duration::from_micros((10 * 1_000_000u64).div_ceil(baud as u64))
 }
 
+/// Time `bytes` bytes take at `baud` with 8N1 framing, to the microsecond above (a whole
+/// frame's, not a byte's rounded time over again: at 4.5 Mbaud that was a third too slow).
+pub fn wire_time(baud: u32, bytes: usize) -> Duration {
+    Duration::from_micros((bytes as u64 * 10_000_000).div_ceil(baud.max(1) as u64))
+}
+
+/// A serial port's rate, shared by its two directions (and with the bridge that checks the
+/// far end runs at the same rate).
+pub type SharedRate = Rc<core::cell::Cell<u32>>;
+
 pub struct UartRx(pub SharedLine);
 pub struct UartTx {
     pub line: SharedLine,
-    pub byte_time: Duration,
+    /// The port's rate: each write takes its bytes' time on the wire at it.
+    pub rate: SharedRate,
     /// Noise on this direction of the line, frame by frame (None: a quiet line).
     pub noise: Option<Rc<RefCell<crate::sim::serial_noise::SerialNoise>>>,
 }
@@ -489,14 +549,27 @@ impl embedded_io_async::Read for UartRx {
     }
 }
 
+impl firmware_master::ports::SerialRate for UartTx {
+    fn set_baud(&mut self, baud: u32) -> bool {
+        self.rate.set(baud);
+        true
+    }
+}
+
 impl embedded_io_async::Write for UartTx {
     async fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
         // The frame is on the wire for its byte time; deliver it when the last byte lands.
-        Timer::after(self.byte_time * buf.len() as u32).await;
+        let rate = self.rate.get();
+        Timer::after(wire_time(rate, buf.len())).await;
         let mut line = self.line.borrow_mut();
+        let before = line.bytes.len();
         match &self.noise {
             Some(noise) => line.bytes.extend(noise.borrow_mut().pass(buf)),
             None => line.bytes.extend(buf.iter().copied()),
+        }
+        let sent = line.bytes.len() - before;
+        if let Some(runs) = &mut line.rates {
+            runs.push_back((rate, sent));
         }
         if let Some(w) = line.reader.take() {
             w.wake();

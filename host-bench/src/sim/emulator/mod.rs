@@ -131,6 +131,8 @@ pub fn run_logged(
     let to_host: SharedLine = Rc::default();
     let host_log = Rc::new(RefCell::new(host::HostLog::default()));
     let byte_time = byte_time(opts.baud);
+    // The emulated host never asks for another rate: one rate for both ends.
+    let rate: SharedRate = Rc::new(core::cell::Cell::new(opts.baud));
 
     // Serial noise each way, from streams of their own (a clean run draws nothing).
     let noisy = opts.faults.serial != SerialFaults::default();
@@ -167,7 +169,7 @@ pub fn run_logged(
             UartRx(to_master.clone()),
             UartTx {
                 line: to_host.clone(),
-                byte_time,
+                rate: rate.clone(),
                 noise: noise_to_host.clone(),
             },
             EmuMotors {
@@ -187,7 +189,7 @@ pub fn run_logged(
             UartRx(to_host.clone()),
             UartTx {
                 line: to_master.clone(),
-                byte_time,
+                rate: rate.clone(),
                 noise: noise_to_master.clone(),
             },
             byte_time,

@@ -83,7 +83,7 @@ impl Options {
             plant_step: 1e-3,
             log_period: 0.01,
             baud: 115_200,
-            spi_clock_hz: 2_250_000,
+            spi_clock_hz: protocol::spi::SPI_CLOCK_HZ,
             master,
             slave: SlaveConfig::DEFAULT,
             robot_layout: scenario.layout,
