@@ -69,9 +69,10 @@ class TestPlayThroughSlaveReset(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.dir = tempfile.TemporaryDirectory()
-        # 0.15 laps, 1.6 s: the play is still streaming at the slave's reset at 1 s of
-        # simulated time, however soon after the model's start it began
-        cls.ticks = circle_stream(cls.dir.name, laps=0.15)
+        # 0.5 laps, 5.2 s played: the play is still streaming at the slave's reset at 1 s of
+        # simulated time, however soon after the model's start it began (0.15 laps no longer
+        # were, once play checked one pose in 50 and the SPI stream ran at 4.5 MHz)
+        cls.ticks = circle_stream(cls.dir.name, laps=0.5)
 
     @classmethod
     def tearDownClass(cls):
