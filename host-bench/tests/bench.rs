@@ -805,3 +805,25 @@ fn play_at(board: &Board, ticks: &Path, robot: &Robot, baud: u32) -> play::PlayO
     let mut link = host_bench::serial::link::Link::open(&board.port, baud).unwrap();
     play::play(&mut link, &request(ticks, robot, &stream)).unwrap()
 }
+
+/// A play leaves the board running the method it ran before, not the one it played: left on
+/// `lut`, the next `record` recorded with it (its board poses 0.03 mm and 0.009 deg off).
+#[test]
+fn a_play_leaves_the_board_on_the_method_it_ran_before() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ticks, robot) = write_case(dir.path(), "omni", OMNI, OMNI_RUN, &[0.31, 0.77, 0.05]);
+    let board = Board::start(virtual_board::Options::default());
+    let stream = tickstream::read(&ticks).unwrap();
+    let mut link = board.link();
+    let o = play::play(
+        &mut link,
+        &play::PlayRequest {
+            method: Method::Lut,
+            ..request(&ticks, &robot, &stream)
+        },
+    )
+    .unwrap();
+    assert_eq!((o.algorithm.as_str(), o.mismatches), ("lut", 0));
+    let info = host_bench::serial::session::info(&mut link).unwrap();
+    assert_eq!(info.algorithm, protocol::spi::OdometryAlgorithm::Exact);
+}

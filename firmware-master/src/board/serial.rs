@@ -50,10 +50,10 @@ impl firmware_master::ports::SerialRate for SerialTx {
 /// The host-to-master half: circular DMA reception, `embedded_io_async::Read`.
 pub type SerialRx = RingBufferedUartRx<'static>;
 
-/// Receive buffer size. At the default 115200 baud (11.5 kB/s) 512 bytes absorb ~44 ms of a
-/// continuous stream without any read, far more than the control code ever stalls the reader
-/// (still ~5 ms at 1 Mbaud).
-const RX_BUFFER_LEN: usize = 512;
+/// Receive buffer size. At 2 Mbaud (200 kB/s, a negotiated rate `play` streams events at)
+/// 2 KiB absorb ~10 ms of a continuous stream without any read, more than the control code
+/// ever stalls the reader (512 B, enough for ~44 ms at the power-on 115200, were 2.5 ms there).
+const RX_BUFFER_LEN: usize = 2048;
 
 /// USART1 on PB6 (TX) / PB7 (RX) (its AFIO remap: PA9 is motor 2's encoder) at `baud`, 8N1, DMA1 CH4 (TX) / CH5 (RX); reception starts
 /// at once. `baud` is `MasterConfig::baud`: the one place the link's rate is chosen.

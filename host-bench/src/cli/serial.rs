@@ -60,7 +60,12 @@ impl PortArgs {
                 self.patience
             );
         }
-        Ok(Link::open(&port, baud)?.with_patience(self.patience))
+        let link = Link::open(&port, baud)?.with_patience(self.patience);
+        // What was done about the adapter's latency timer (ports that have one).
+        if let Some(note) = &link.latency_note {
+            eprintln!("note: {note}");
+        }
+        Ok(link)
     }
 }
 
