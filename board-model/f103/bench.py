@@ -279,11 +279,17 @@ def _tell_halts(bench):
             b._halt_told = False  # running again after a reset: a new halt is told too
 
 
-def _summary(bench, sim_ticks, wall):
+def _summary(bench, sim_ticks, wall, link=None):
     master = bench.boards["master"]
     print(
         f"board model: {sim_ticks / Chip.TICK_HZ:.3f} s simulated in {wall:.3f} s; USART1 "
-        f"{master.usart1.bytes_out} bytes out, {master.usart1.bytes_in} in; SPI1 "
+        f"{master.usart1.bytes_out} bytes out, {master.usart1.bytes_in} in"
+        + (
+            f", at {link.usart_baud()} baud at the end, {link.garbled} bytes garbled"
+            if link
+            else ""
+        )
+        + "; SPI1 "
         f"{master.spi1.bytes} bytes; " + speed_line(sim_ticks, wall),
         file=sys.stderr,
     )
@@ -341,7 +347,7 @@ def cmd_serve(args):
     bench = _bench_for(args, boards)
     drivers = _drive(bench, args)
     _schedule_resets(bench, args)
-    link = PtyLink(bench.boards["master"].usart1)
+    link = PtyLink(bench.boards["master"].usart1, args.max_baud)
     print(f"port: {link.port}", flush=True)
     print(
         f"board model serving ({'+'.join(boards)}, USART1 at the baud the firmware sets); "
@@ -358,7 +364,7 @@ def cmd_serve(args):
         lambda: stop or (end is not None and bench.now >= end),
         lambda: _tell_halts(bench),
     )
-    _summary(bench, bench.now, wall)
+    _summary(bench, bench.now, wall, link)
     ok = _boards_end(bench, wall)
     for d in drivers:
         s = bench.boards["slave"]
@@ -390,7 +396,7 @@ def cmd_play_check(args):
     play's status. The model's speed is measured over the play alone."""
     bench = _bench_for(args)
     _schedule_resets(bench, args)
-    link = PtyLink(bench.boards["master"].usart1)
+    link = PtyLink(bench.boards["master"].usart1, args.max_baud)
     bench.run(int(args.boot_ms * 1e-3 * Chip.TICK_HZ))  # boot before the host knocks
     cmd = [
         args.host_bench,
@@ -421,7 +427,7 @@ def cmd_play_check(args):
         host.terminate()
     rc = host.wait()
     link.close()
-    _summary(bench, bench.now - start, wall)
+    _summary(bench, bench.now - start, wall, link)
     if not _boards_end(bench, wall):
         rc = rc or 1
     return rc
@@ -447,6 +453,11 @@ def main(argv=None):
     sv.add_argument("--master", help="master ELF")
     sv.add_argument("--no-slave", action="store_true", help="the master alone")
     sv.add_argument("--ms", type=float, default=0, help="stop after this much simulated time")
+    sv.add_argument(
+        "--max-baud",
+        type=int,
+        help="the fastest rate the USB-serial adapter carries (a faster switch garbles)",
+    )
     sv.add_argument("--slice-us", type=float, default=10.0)
     sv.add_argument("--step-ms", type=float, default=2.0, help="pty polling period, simulated")
     sv.add_argument("--cpi", type=float, default=1.0)
@@ -469,6 +480,11 @@ def main(argv=None):
         "play-check", help="serve, and run `host-bench play` against it; its exit status"
     )
     pc.add_argument("--ticks", required=True, help="tick stream (docs/tick-stream.md)")
+    pc.add_argument(
+        "--max-baud",
+        type=int,
+        help="the fastest rate the USB-serial adapter carries (a faster switch garbles)",
+    )
     pc.add_argument("--sensor", default="timestamps", choices=["timestamps", "counts"])
     pc.add_argument("--host-bench", default=os.path.join(ROOT, "target", "debug", "host-bench"))
     pc.add_argument("--slave", help="slave ELF")

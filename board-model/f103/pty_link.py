@@ -12,11 +12,20 @@ slower clock, so a `play` leaves up to a second of line time queued (9 kB measur
 where a board at speed would have carried it long before another host opened the port. Those
 bytes would reach the master in the next host's session and hold its handshake back past the
 host's 3 s (wall) answer timeout, so they are dropped when the host hangs up (said on stderr).
-To see the hang-up, the link does not keep the pty's slave side open itself."""
+To see the hang-up, the link does not keep the pty's slave side open itself.
 
+The line carries bytes intact only while both ends run at one rate: the host's is what it set
+on its end of the pty (termios2's c_ospeed, read back each step), the USART's is f_PCLK / BRR
+(§27.3.4); past the receiver's tolerance, about 3.75 % with 16x oversampling (§27.3.5), every
+byte arrives as something else, both ways, and is counted. `max_baud` is the fastest rate the
+USB-serial adapter carries: above it the bytes are garbled too."""
+
+import fcntl
 import os
 import select
+import struct
 import sys
+import termios
 import threading
 import time
 import tty
@@ -24,9 +33,33 @@ import tty
 from .core import Chip
 
 
+# struct termios2 (asm-generic): four tcflag_t, c_line, 19 control chars, c_ispeed, c_ospeed.
+_TERMIOS2 = struct.Struct("4IB19c2I")
+_TCGETS2 = 0x802C542A  # _IOR('T', 0x2A, struct termios2) on x86-64 and arm64
+# what a UART's receiver tolerates between its rate and the sender's (RM0008 §27.3.5)
+_TOLERANCE = 0.0375
+
+
+def host_baud(fd):
+    """The rate the host set on its end of the pty: termios2's c_ospeed (any rate, as
+    serialport sets it), else None."""
+    try:
+        raw = fcntl.ioctl(fd, _TCGETS2, bytes(_TERMIOS2.size))
+        return _TERMIOS2.unpack(raw)[-1]
+    except OSError:
+        return None
+
+
+def _garble(b):
+    """What a byte sent at one rate reads as at another: something else."""
+    return ~((b << 3 | b >> 5) & 0xFF) & 0xFF
+
+
 class PtyLink:
-    def __init__(self, usart):
+    def __init__(self, usart, max_baud=None):
         self.usart = usart
+        self.max_baud = max_baud
+        self.garbled = 0
         self.master_fd, self.slave_fd = os.openpty()
         tty.setraw(self.slave_fd)
         tty.setraw(self.master_fd)
@@ -40,7 +73,9 @@ class PtyLink:
         self._closed = False
         threading.Thread(target=self._watch_hangups, daemon=True).start()
         self.out = bytearray()
-        usart.tx_sink = self.out.append
+        self.host_rate = None  # read back from the pty at each step (`pull`)
+        # judged as each byte leaves the shift register, at the rate the USART sent it
+        usart.tx_sink = self._sent
 
     def _watch_hangups(self):
         """Count the host's hang-ups: POLLHUP on the master side while no process has the
@@ -67,14 +102,44 @@ class PtyLink:
                     file=sys.stderr,
                     flush=True,
                 )
+        self.host_rate = host_baud(self.master_fd)
         try:
             r, _, _ = select.select([self.master_fd], [], [], 0)
             if r:
                 data = os.read(self.master_fd, 4096)
                 if data:
-                    self.usart.receive(data)
+                    self.usart.receive(self._across(data))
         except (BlockingIOError, OSError):
             pass  # EIO: no host has the port open
+
+    def usart_baud(self):
+        """The USART's rate: f_PCLK / BRR (§27.3.4), None before it is set."""
+        u = self.usart
+        return u.chip.pclk[u.apb] // u.brr if u.brr >= 16 else None
+
+    def line_ok(self):
+        """Whether bytes cross intact: both ends at one rate, within what the adapter carries."""
+        host, usart = self.host_rate, self.usart_baud()
+        if not host or not usart:
+            return False
+        if self.max_baud and max(host, usart) > self.max_baud:
+            return False
+        return abs(host - usart) <= _TOLERANCE * usart
+
+    def _across(self, data):
+        """`data` as it arrives at the far end of the line."""
+        if self.line_ok():
+            return data
+        self.garbled += len(data)
+        return bytes(_garble(b) for b in data)
+
+    def _sent(self, byte):
+        """A byte the USART sent, as the host receives it."""
+        if self.line_ok():
+            self.out.append(byte)
+        else:
+            self.garbled += 1
+            self.out.append(_garble(byte))
 
     def push(self):
         """Bytes the USART sent, to the host (a host that does not read loses the oldest)."""

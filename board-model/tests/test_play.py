@@ -40,10 +40,11 @@ class TestPlay(unittest.TestCase):
     def tearDownClass(cls):
         cls.dir.cleanup()
 
-    def play(self, sensor, *play_args):
+    def play(self, sensor, *play_args, model_args=()):
         r = subprocess.run(
             [
                 *board_model("play-check"),
+                *model_args,
                 "--ticks",
                 self.ticks,
                 "--sensor",
@@ -78,6 +79,25 @@ class TestPlay(unittest.TestCase):
         robot = os.path.join(ROOT, "robots", "diff-wide.toml")
         out = self.play("timestamps", "--robot", robot)
         self.assertIn("(robot diff-wide ", out)
+
+    def test_switched_link(self):
+        """`--baud 2000000`: the images' USART1 switches after the hello (BRR 36 at 72 MHz)
+        and the host's port with it, the play runs there bit-exact, and the host switches the
+        master back to 115200 when it closes the port. The model's line garbles every byte
+        while the two ends' rates differ, so a play that ran did so at the rate both set."""
+        out = self.play("timestamps", "--baud", "2000000")
+        self.assertRegex(out, r"link \d+ bytes out / \d+ in at 2000000 baud", out)
+        self.assertIn("at 115200 baud at the end", out)
+
+    def test_rate_the_adapter_does_not_carry(self):
+        """An adapter that carries 1 Mbaud at most, asked for 2: no answer at the new rate,
+        the master's trial runs out and it goes back to 115200, the host too, says so, and the
+        play completes there, bit-exact."""
+        out = self.play(
+            "timestamps", "--baud", "2000000", model_args=("--max-baud", "1000000")
+        )
+        self.assertIn("both went back to 115200 baud", out)
+        self.assertRegex(out, r"link \d+ bytes out / \d+ in at 115200 baud", out)
 
 
 if __name__ == "__main__":
