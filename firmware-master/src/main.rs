@@ -20,14 +20,21 @@ mod firmware {
     #[embassy_executor::task]
     async fn motion(
         bus: board::SlaveLink,
-        serial_rx: board::SerialRx,
-        serial_tx: board::SerialTx,
+        serial_rx: board::HostRx,
+        serial_tx: board::HostTx,
         motors: board::Motors,
         encoders: board::Encoders,
         shared: &'static MasterShared,
         config: MasterConfig,
     ) -> ! {
         firmware_master::run(bus, serial_rx, serial_tx, motors, encoders, shared, &config).await
+    }
+
+    /// The chip's USB device: enumeration, and the CDC-ACM port's endpoints.
+    #[cfg(feature = "usb")]
+    #[embassy_executor::task]
+    async fn usb(mut device: board::UsbDevice) -> ! {
+        device.run().await
     }
 
     #[embassy_executor::main]
@@ -53,11 +60,13 @@ mod firmware {
             .unwrap_or_else(|| defmt::panic!("main ran twice"));
         spawner
             .spawn(bluepill::heartbeat(board.led).unwrap_or_else(|_| bluepill::already_running()));
+        #[cfg(feature = "usb")]
+        spawner.spawn(usb(board.usb).unwrap_or_else(|_| bluepill::already_running()));
         spawner.spawn(
             motion(
                 board.slave,
-                board.serial_rx,
-                board.serial_tx,
+                board.host_rx,
+                board.host_tx,
                 board.motors,
                 board.encoders,
                 shared,

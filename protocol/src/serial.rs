@@ -375,3 +375,36 @@ pub fn decode_frame<T: DeserializeOwned + Serialize>(frame: &mut [u8]) -> Result
         _ => Err(FrameError::NonCanonical),
     }
 }
+
+/// The master's own USB port, a CDC-ACM serial port carrying this very protocol (a second
+/// way to reach the master, with no USB-serial adapter): its USB identity.
+pub mod usb {
+    /// pid.codes' vendor ID, with its PID for tests and private use: fine for a bench's own
+    /// boards; a product shipped to others registers its own PID.
+    pub const VID: u16 = 0x1209;
+    pub const PID: u16 = 0x0001;
+    pub const MANUFACTURER: &str = "omnibench";
+    pub const PRODUCT: &str = "omnibench master";
+
+    /// The USB serial number: the chip's 96-bit unique ID (`BoardInfo::master_uid`, bytes in
+    /// address order) as 24 upper-case hex digits, so a port names the board it belongs to,
+    /// as the probe that flashed it reads the same ID.
+    pub fn serial_number(uid: &[u8; 12]) -> [u8; 24] {
+        const HEX: &[u8; 16] = b"0123456789ABCDEF";
+        let mut out = [0u8; 24];
+        for (i, b) in uid.iter().enumerate() {
+            out[2 * i] = HEX[usize::from(b >> 4)];
+            out[2 * i + 1] = HEX[usize::from(b & 0xF)];
+        }
+        out
+    }
+
+    #[cfg(test)]
+    mod tests {
+        #[test]
+        fn the_serial_number_is_the_uid_in_hex_in_address_order() {
+            let uid = [0x12, 0x34, 0xAB, 0xCD, 0, 1, 2, 3, 0xFE, 0xDC, 0xBA, 0x98];
+            assert_eq!(&super::serial_number(&uid), b"1234ABCD00010203FEDCBA98");
+        }
+    }
+}

@@ -167,9 +167,14 @@ def step(img, f, k):
     if flow and k + 1 < len(f.insns):
         succ.append(k + 1)
     elif flow:
-        exit_, targets = "falls into", [
-            min((s for s in img.starts if s > f.start), default=addr + 4)
-        ]
+        after = min((s for s in img.starts if s > f.start), default=addr + 4)
+        if exit_ == "call":
+            # A call that ends its function: its callee, thought to return, returns into the
+            # next function. Both at this sp (the firmware's `main` ends calling its `-> !`
+            # main through a function the analysis sees returning: the call was dropped).
+            targets = targets + [after]
+        else:
+            exit_, targets = "falls into", [after]
     return exit_, targets, succ
 
 

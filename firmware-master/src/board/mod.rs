@@ -4,16 +4,22 @@
 //! Pin map (see docs/pinmap.md): PB6/PB7 USART1 (remapped) to the host with DMA1 CH4 (TX) / CH5
 //! (RX), PA4 chip select + PA5..PA7 SPI1 master with DMA1 CH2 (RX) / CH3 (TX), PA0..PA2 TIM2
 //! PWM, PB12..PB14 direction, PB15 driver enable, motor encoders on TIM3 (PB4/PB5), TIM1
-//! (PA8/PA9) and EXTI 8/9 (PB8/PB9), PC13 LED. TIM4 is embassy's time driver. JTAG is off
+//! (PA8/PA9) and EXTI 8/9 (PB8/PB9), PC13 LED. With the `usb` feature the host's line is the
+//! chip's own USB on PA11/PA12 (CDC-ACM) instead of USART1. TIM4 is embassy's time driver. JTAG is off
 //! (PB4 is a timer pin); SWD on PA13/PA14 stays.
 
 mod motor_encoders;
 mod motors;
+#[cfg(not(feature = "usb"))]
 mod serial;
 mod slave_link;
+#[cfg(feature = "usb")]
+mod usb;
+#[cfg(feature = "usb")]
+mod usb_port;
 
 use embassy_stm32::gpio::Output;
-use embassy_stm32::{bind_interrupts, dma, peripherals, usart};
+use embassy_stm32::{bind_interrupts, dma, peripherals};
 use firmware_master::MasterConfig;
 // Linked for its side effect: the RTT transport behind `defmt`. The panic handler is
 // `bluepill`'s (no `panic-probe`: its `print-defmt` pulls in `core::fmt`).
@@ -21,22 +27,39 @@ use defmt_rtt as _;
 
 pub use motor_encoders::Encoders;
 pub use motors::Motors;
-pub use serial::{SerialRx, SerialTx};
+// The line to the host: USART1 through a USB-serial adapter, or (`usb` feature) the chip's own
+// USB as a CDC-ACM port.
+#[cfg(not(feature = "usb"))]
+pub use serial::{SerialRx as HostRx, SerialTx as HostTx};
 pub use slave_link::SlaveLink;
+#[cfg(feature = "usb")]
+pub use usb::{Device as UsbDevice, SerialRx as HostRx, SerialTx as HostTx};
 
+#[cfg(not(feature = "usb"))]
 bind_interrupts!(pub struct Irqs {
-    USART1 => usart::InterruptHandler<peripherals::USART1>;
+    USART1 => embassy_stm32::usart::InterruptHandler<peripherals::USART1>;
     DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
     DMA1_CHANNEL3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
     DMA1_CHANNEL4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
     DMA1_CHANNEL5 => dma::InterruptHandler<peripherals::DMA1_CH5>;
 });
 
+#[cfg(feature = "usb")]
+bind_interrupts!(pub struct Irqs {
+    DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
+    DMA1_CHANNEL3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
+    USB_LP_CAN1_RX0 => embassy_stm32::usb::InterruptHandler<peripherals::USB>;
+});
+
 /// Everything `main` hands to the tasks.
 pub struct Board {
     pub slave: SlaveLink,
-    pub serial_rx: SerialRx,
-    pub serial_tx: SerialTx,
+    /// The line to the host.
+    pub host_rx: HostRx,
+    pub host_tx: HostTx,
+    /// The USB device, to be run by its own task.
+    #[cfg(feature = "usb")]
+    pub usb: UsbDevice,
     pub motors: Motors,
     pub encoders: Encoders,
     pub led: Output<'static>,
@@ -67,7 +90,8 @@ pub fn init(config: &MasterConfig) -> Board {
         p.SPI1, p.PA4, p.PA5, p.PA6, p.PA7, p.DMA1_CH3, p.DMA1_CH2, Irqs,
     );
     let encoders = Encoders::new(p.TIM3, p.PB4, p.PB5, p.TIM1, p.PA8, p.PA9, p.PB8, p.PB9);
-    let (serial_tx, serial_rx) = serial::new(
+    #[cfg(not(feature = "usb"))]
+    let (host_tx, host_rx) = serial::new(
         config.baud,
         p.USART1,
         p.PB6,
@@ -76,12 +100,16 @@ pub fn init(config: &MasterConfig) -> Board {
         p.DMA1_CH5,
         Irqs,
     );
+    #[cfg(feature = "usb")]
+    let (usb, host_tx, host_rx) = usb::new(p.USB, p.PA12, p.PA11, &config.uid);
     let led = bluepill::status_led(p.PC13);
 
     Board {
         slave,
-        serial_rx,
-        serial_tx,
+        host_rx,
+        host_tx,
+        #[cfg(feature = "usb")]
+        usb,
         motors,
         encoders,
         led,

@@ -1,6 +1,7 @@
 //! What is attached to this computer: debug probes (through probe-rs) and serial ports
 //! (through serialport, reading sysfs on Linux: no libudev needed).
 
+use protocol::serial::usb as usb_ids;
 use std::path::Path;
 
 use probe_rs::probe::list::{Accessibility, Lister, ProbeListItem};
@@ -50,11 +51,53 @@ pub struct SerialPortEntry {
     pub manufacturer: Option<String>,
     pub product: Option<String>,
     pub serial: Option<String>,
+    /// An omnibench master's own USB port (the `usb` image, CDC-ACM): its chip's unique ID,
+    /// which is its USB serial number. `[link] port = "uid:ID"` in bench.toml names it.
+    pub master_uid: Option<String>,
 }
 
 impl SerialPortEntry {
     pub fn is_usb(&self) -> bool {
         self.kind == "usb"
+    }
+
+    /// The chip ID of the omnibench master this is the USB port of, if it is one.
+    fn omnibench_master(&self) -> Option<String> {
+        let ids = (
+            format!("{:04x}", usb_ids::VID),
+            format!("{:04x}", usb_ids::PID),
+        );
+        let ours = self.vid.as_deref() == Some(ids.0.as_str())
+            && self.pid.as_deref() == Some(ids.1.as_str())
+            && self.product.as_deref() == Some(usb_ids::PRODUCT);
+        ours.then(|| self.serial.clone()).flatten()
+    }
+}
+
+/// The port `spec` names: a path as it is, or `uid:ID`, the USB port of the omnibench master
+/// whose chip's unique ID (24 hex digits, as `host-bench probes` lists it) is ID.
+pub fn resolve_port(spec: &str, ports: &[SerialPortEntry]) -> Result<String, String> {
+    let Some(uid) = spec.strip_prefix("uid:") else {
+        return Ok(spec.to_string());
+    };
+    let found: Vec<&SerialPortEntry> = ports
+        .iter()
+        .filter(|p| {
+            p.master_uid
+                .as_deref()
+                .is_some_and(|u| u.eq_ignore_ascii_case(uid))
+        })
+        .collect();
+    match found[..] {
+        [one] => Ok(one.path.clone()),
+        [] => Err(format!(
+            "no omnibench master's USB port with chip ID {uid} is attached (`host-bench probes` \
+             lists the ports; the master must run the image built with `--features usb`)"
+        )),
+        _ => Err(format!(
+            "{} ports say they are the master with chip ID {uid}",
+            found.len()
+        )),
     }
 }
 
@@ -102,6 +145,7 @@ pub fn serial_ports() -> Result<Vec<SerialPortEntry>, String> {
                 manufacturer: None,
                 product: None,
                 serial: None,
+                master_uid: None,
             };
             entry.kind = match port.port_type {
                 serialport::SerialPortType::UsbPort(usb) => {
@@ -117,6 +161,7 @@ pub fn serial_ports() -> Result<Vec<SerialPortEntry>, String> {
                 serialport::SerialPortType::Unknown => "unknown",
             }
             .to_string();
+            entry.master_uid = entry.omnibench_master();
             entry
         })
         .collect();
@@ -152,7 +197,11 @@ pub fn inventory_text(inv: &Inventory) -> String {
     } else {
         out.push_str("serial ports:\n");
         for s in &inv.serial_ports {
-            let usb = if s.is_usb() {
+            let usb = if let Some(uid) = &s.master_uid {
+                format!(
+                    "  the omnibench master with chip ID {uid} (its own USB: port = \"uid:{uid}\")"
+                )
+            } else if s.is_usb() {
                 format!(
                     "  usb {}:{}  {} {}  serial {}",
                     s.vid.as_deref().unwrap_or("?"),
@@ -171,4 +220,62 @@ pub fn inventory_text(inv: &Inventory) -> String {
         out.push_str(&format!("warning: {w}\n"));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn port(path: &str, ids: (&str, &str), product: &str, serial: &str) -> SerialPortEntry {
+        let mut p = SerialPortEntry {
+            path: path.into(),
+            kind: "usb".into(),
+            vid: Some(ids.0.into()),
+            pid: Some(ids.1.into()),
+            manufacturer: Some("omnibench".into()),
+            product: Some(product.into()),
+            serial: Some(serial.into()),
+            master_uid: None,
+        };
+        p.master_uid = p.omnibench_master();
+        p
+    }
+
+    #[test]
+    fn a_masters_own_usb_port_is_known_by_its_chip_id_and_named_by_it() {
+        let uid = "35FF6D064E57363835391343";
+        let ports = [
+            port(
+                "/dev/ttyUSB0",
+                ("0403", "6001"),
+                "FT232R USB UART",
+                "A50285BI",
+            ),
+            port("/dev/ttyACM0", ("1209", "0001"), "omnibench master", uid),
+            // Another device on pid.codes' test PID is not taken for a master.
+            port("/dev/ttyACM1", ("1209", "0001"), "someone's gadget", "1234"),
+        ];
+        assert_eq!(ports[1].master_uid.as_deref(), Some(uid));
+        assert!(ports[0].master_uid.is_none() && ports[2].master_uid.is_none());
+        let lower = format!("uid:{}", uid.to_lowercase());
+        assert_eq!(resolve_port(&lower, &ports).unwrap(), "/dev/ttyACM0");
+        assert_eq!(
+            resolve_port("/dev/ttyUSB0", &ports).unwrap(),
+            "/dev/ttyUSB0"
+        );
+        let e = resolve_port("uid:0123", &ports).unwrap_err();
+        assert!(
+            e.contains("no omnibench master") && e.contains("--features usb"),
+            "{e}"
+        );
+        let inv = Inventory {
+            serial_ports: ports.to_vec(),
+            ..Inventory::default()
+        };
+        let text = inventory_text(&inv);
+        assert!(
+            text.contains(&format!("the omnibench master with chip ID {uid}")),
+            "{text}"
+        );
+    }
 }

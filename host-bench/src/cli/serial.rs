@@ -13,8 +13,9 @@ use host_bench::sim::virtual_board;
 /// Where the master's serial link is: --port/--baud, else bench.toml's `[link]`.
 #[derive(Args, Clone, Debug)]
 pub struct PortArgs {
-    /// Serial port of the master's USART1 (a USB-serial adapter, or virtual-board's pty)
-    /// [default: bench.toml's link.port].
+    /// Serial port of the master's USART1 (a USB-serial adapter, or virtual-board's pty), or
+    /// `uid:ID`: the own USB port of the master whose chip ID is ID (the image built with
+    /// `--features usb`; `host-bench probes` lists it) [default: bench.toml's link.port].
     #[arg(long, value_name = "PORT")]
     pub port: Option<String>,
     /// Baud rate to switch the link to once the master answers at its power-on 115200 (up to
@@ -60,6 +61,15 @@ impl PortArgs {
                 self.patience
             );
         }
+        // `uid:ID`: the USB port of the master whose chip ID that is.
+        let port = if port.starts_with("uid:") {
+            let ports =
+                host_bench::boards::discovery::serial_ports().map_err(anyhow::Error::msg)?;
+            host_bench::boards::discovery::resolve_port(&port, &ports)
+                .map_err(anyhow::Error::msg)?
+        } else {
+            port
+        };
         let link = Link::open(&port, baud)?.with_patience(self.patience);
         // What was done about the adapter's latency timer (ports that have one).
         if let Some(note) = &link.latency_note {
