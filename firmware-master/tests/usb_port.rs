@@ -70,7 +70,6 @@ impl<'a> Driver<'a> for FakeDriver {
         max_packet_size: u16,
         interval_ms: u8,
     ) -> Result<Ep, EndpointAllocError> {
-        self.next += 1;
         Ok(self.ep(Direction::Out, ep_type, max_packet_size, interval_ms))
     }
 
@@ -81,7 +80,6 @@ impl<'a> Driver<'a> for FakeDriver {
         max_packet_size: u16,
         interval_ms: u8,
     ) -> Result<Ep, EndpointAllocError> {
-        self.next += 1;
         Ok(self.ep(Direction::In, ep_type, max_packet_size, interval_ms))
     }
 
@@ -91,7 +89,9 @@ impl<'a> Driver<'a> for FakeDriver {
 }
 
 impl FakeDriver {
-    fn ep(&self, dir: Direction, ep_type: EndpointType, mps: u16, interval_ms: u8) -> Ep {
+    /// The next endpoint number, each direction its own (as the chip's driver gives them).
+    fn ep(&mut self, dir: Direction, ep_type: EndpointType, mps: u16, interval_ms: u8) -> Ep {
+        self.next += 1;
         Ep {
             info: EndpointInfo {
                 addr: EndpointAddress::from_parts(self.next as usize, dir),
