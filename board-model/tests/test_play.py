@@ -82,12 +82,13 @@ class TestPlay(unittest.TestCase):
 
     def test_switched_link(self):
         """`--baud 2000000`: the images' USART1 switches after the hello (BRR 36 at 72 MHz)
-        and the host's port with it, the play runs there bit-exact, and the host switches the
-        master back to 115200 when it closes the port. The model's line garbles every byte
-        while the two ends' rates differ, so a play that ran did so at the rate both set."""
+        and the host's port with it, and the play runs there bit-exact. The model's line
+        garbles every byte while the two ends' rates differ, so a play that ran did so at the
+        rate both set. (Not asserted: the master back at 115200 at the end. The model stops
+        when the host exits, which can be before the master switches after its last answer;
+        the virtual board's test shows the next host finds it at 115200.)"""
         out = self.play("timestamps", "--baud", "2000000")
         self.assertRegex(out, r"link \d+ bytes out / \d+ in at 2000000 baud", out)
-        self.assertIn("at 115200 baud at the end", out)
 
     def test_rate_the_adapter_does_not_carry(self):
         """An adapter that carries 1 Mbaud at most, asked for 2: no answer at the new rate,
