@@ -110,6 +110,11 @@ fn wire_pose(p: Pose2) -> protocol::Pose {
     protocol::Pose::from_si(p.x, p.y, p.theta)
 }
 
+/// The full-precision pose the slave starts from, given `p` on the wire.
+fn fixed(p: protocol::Pose) -> FixedPose {
+    FixedPose::from_micrometres(p.x_um, p.y_um, p.heading.0)
+}
+
 /// Where the last window starts: the updates after the last multiple of `every` that no
 /// later report closes, reported one by one so the end of the stream is checked too.
 fn last_window(updates: u64, every: u16) -> u32 {
@@ -130,9 +135,8 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         PlayedStream::new(req.stream, req.robot, req.kind, info.period_us).map_err(in_file)?;
     // Both sides start from the micrometre pose on the wire.
     let start_wire = wire_pose(stream.start());
-    let start = FixedPose::from_micrometres(start_wire.x_um, start_wire.y_um, start_wire.heading.0);
     // The method is checked against the stream before the board is asked.
-    Expected::new(&layout, req.method, &stream, start)?;
+    Expected::new(&layout, req.method, &stream, fixed(start_wire))?;
     let fingerprint = session::load_robot(link, &layout)?;
     let every = req.check_every.max(1);
     let plan = Pass {
@@ -140,7 +144,6 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         method: req.method,
         stream: &stream,
         start_wire,
-        start,
         checks: PoseChecks {
             every,
             all_from: last_window(stream.updates, every),
@@ -239,9 +242,8 @@ struct Pass<'p, 's, 'a> {
     layout: &'p robot_math::odometry::Layout,
     method: Method,
     stream: &'s PlayedStream<'a>,
-    /// Where odometry starts, as the wire carries it, and as both sides start from it.
+    /// Where odometry starts, as the wire carries it: both sides start from it.
     start_wire: protocol::Pose,
-    start: FixedPose,
     checks: PoseChecks,
     until: u64,
     progress: Option<&'p indicatif::ProgressBar>,
@@ -261,8 +263,9 @@ struct Passed {
 impl Pass<'_, '_, '_> {
     fn run(&self, link: &mut Link) -> Result<Passed> {
         let stream = self.stream;
+        let start = fixed(self.start_wire);
         // The host's own reports: every update's, with the digest running through them all.
-        let mut expected = Expected::new(self.layout, self.method, stream, self.start)?;
+        let mut expected = Expected::new(self.layout, self.method, stream, start)?;
         let source = match stream.kind {
             PlayKind::Ticks => SensorSource::PlayedTicks,
             PlayKind::Counts => SensorSource::PlayedCounts,
@@ -295,7 +298,7 @@ impl Pass<'_, '_, '_> {
         let mut good = 0u64;
         let mut reports = 0u64;
         let mut first_bad = None;
-        let mut scorer = Scorer::new(stream.truth(), stream.period_us, self.start.to_pose2());
+        let mut scorer = Scorer::new(stream.truth(), stream.period_us, start.to_pose2());
         let mut progress = Progress::new(link);
         if let Some(bar) = self.progress {
             bar.set_length(self.until);

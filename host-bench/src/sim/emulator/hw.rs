@@ -472,11 +472,6 @@ impl UartLine {
         }
     }
 
-    /// Everything that has landed, for a reader outside the emulation.
-    pub fn take_all(&mut self) -> Vec<u8> {
-        self.bytes.drain(..).collect()
-    }
-
     /// A line that keeps the rate its bytes were sent at ([`UartLine::take_runs`]).
     pub fn with_rates() -> UartLine {
         UartLine {
