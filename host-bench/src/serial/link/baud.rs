@@ -35,7 +35,7 @@ impl Link {
             );
         }
         let started = Instant::now();
-        if !self.ask_for(target)? {
+        if !self.ask_for(target, 3)? {
             self.baud_note = Some(format!(
                 "the master did not answer the switch to {target} baud: staying at {}",
                 self.baud
@@ -67,9 +67,9 @@ impl Link {
         Ok(())
     }
 
-    /// Ask the master to switch to `baud`: true once it said it will.
-    fn ask_for(&mut self, baud: u32) -> Result<bool> {
-        for _ in 0..3 {
+    /// Ask the master to switch to `baud`, up to `tries` times: true once it said it will.
+    fn ask_for(&mut self, baud: u32, tries: u32) -> Result<bool> {
+        for _ in 0..tries {
             self.send_now(&HostToMaster::SetBaud { baud })?;
             let until = Instant::now() + self.wait(Duration::from_millis(300));
             while Instant::now() < until {
@@ -115,7 +115,7 @@ impl Link {
             self.set_port_baud(target)?;
             return Ok(());
         }
-        if self.ask_for(target)? {
+        if self.ask_for(target, 3)? {
             self.set_port_baud(target)?;
             if !self.proven(target)? {
                 self.set_port_baud(POWER_ON_BAUD)?;
@@ -126,7 +126,9 @@ impl Link {
 
     /// Leave the master at its power-on rate, where the next host looks for it.
     pub(super) fn switch_back(&mut self) {
-        if self.baud != POWER_ON_BAUD && self.ask_for(POWER_ON_BAUD).unwrap_or(false) {
+        // Once: a board that stopped answering (the error the program ends with) must not hold
+        // its exit for long; the master goes back by itself after 2 s of silence anyway.
+        if self.baud != POWER_ON_BAUD && self.ask_for(POWER_ON_BAUD, 1).unwrap_or(false) {
             let _ = self.set_port_baud(POWER_ON_BAUD);
         }
     }
