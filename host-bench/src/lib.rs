@@ -3,7 +3,8 @@
 //! * [`sim`]: the simulated robot, trajectories, the tick generator and the two-board emulator;
 //! * [`eval`]: replay, the accuracy suite, reports and plots;
 //! * [`serial`]: the serial link to the boards, `play` and `record`, and what they share;
-//! * [`boards`]: the real boards: their probes and serial ports, bench.toml, flashing.
+//! * [`boards`]: the real boards: their probes and serial ports, bench.toml, flashing;
+//! * [`viewer`]: runs you can look at: MCAP files, the live Foxglove server, the bench page.
 //!
 //! The `host-bench` binary (`src/main.rs`, `src/cli/`) is the command line over these.
 
@@ -13,3 +14,4 @@ pub mod eval;
 pub mod formats;
 pub mod serial;
 pub mod sim;
+pub mod viewer;

@@ -62,11 +62,17 @@ enum Command {
         json: bool,
         /// Run N times with seeds SEED, SEED+1, ... and report the spread of the errors
         /// (quantisation depends on where the encoders stood at power-on).
-        #[arg(long, value_name = "N", conflicts_with = "out")]
+        #[arg(long, value_name = "N", conflicts_with_all = ["out", "mcap", "live"])]
         sweep: Option<u32>,
         /// Write run.csv (the log), path.svg (paths plot) and summary.json into this folder.
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        #[command(flatten)]
+        view: host_bench::viewer::ViewArgs,
+        /// With --live: the run paced to this many times real time (an emulation runs far
+        /// faster than real time; paced, the page and the viewers can follow it).
+        #[arg(long, value_name = "X", default_value_t = 1.0, requires = "live")]
+        live_speed: f64,
         /// Where the two measuring-wheel encoders stand within their counts at power-on,
         /// fractions of a count in [0, 1) [default: drawn from the seed]. With time stamps the
         /// slave places each wheel from its first ticks; reading counters it cannot, and
@@ -207,6 +213,8 @@ enum Command {
         /// Print {"algorithms":[{name, final_error_m, max_error_m, final_heading_error_rad, path_length_m}...]}.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        view: host_bench::viewer::ViewArgs,
     },
     /// How far a robot's geometry is off its robot file, from runs whose true end pose is
     /// known (UMBmark's squares), and the robot file corrected (docs/calibration.md).
@@ -298,6 +306,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
             sweep,
             out,
+            view,
+            live_speed,
             encoder_phase,
             edges,
             fault_slave_off_at,
@@ -371,14 +381,41 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }
+            if !(live_speed > 0.0 && live_speed.is_finite()) {
+                anyhow::bail!("--live-speed {live_speed}: a factor above 0");
+            }
+            let mut outputs = host_bench::viewer::Outputs::open(
+                &view,
+                host_bench::viewer::topics::emulate_channels(false),
+                "host-bench emulate",
+            )?;
+            let pacer = outputs
+                .is_live()
+                .then(|| host_bench::viewer::Pacer::new(live_speed));
+            let mut see = |row: &emulator::LogRow| {
+                if let Some(p) = &pacer {
+                    p.wait_for(row.t_s);
+                }
+                host_bench::viewer::topics::emulate_row(&mut outputs.view.borrow_mut(), row)
+            };
             // With --out, the files are written as the run goes but put in place only once
             // it has scored something and the fault check is in: all of them or none.
             let (mut run, files) = match &out {
                 Some(dir) => {
-                    let (run, files) = report::emulate_into(&scenario, &opts, dir)?;
+                    let (run, files) = report::emulate_into(&scenario, &opts, dir, &mut see)?;
                     (run, Some(files))
                 }
-                None => (emulator::run(&scenario, &opts)?, None),
+                None => {
+                    let summary =
+                        emulator::run_logged(&scenario, &opts, Some(&mut |row| see(&row)))?;
+                    (
+                        emulator::Run {
+                            summary,
+                            log: Vec::new(),
+                        },
+                        None,
+                    )
+                }
             };
             let spi = opts.faults.spi;
             if spi != Default::default() {
@@ -394,11 +431,26 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     }
                 }
             }
+            if nothing.is_none() {
+                if let Some(p) = outputs.finish()? {
+                    if !json {
+                        eprintln!("wrote {}", p.display());
+                    }
+                }
+            }
             if json {
                 println!("{}", serde_json::to_string(&run.summary)?);
             } else {
                 print!("{}", report::summary_text(&run.summary));
             }
+            outputs.hold(&match &nothing {
+                None => format!(
+                    "done: slave odometry final error {:.3} mm, max {:.3} mm",
+                    run.summary.final_error_m * 1e3,
+                    run.summary.max_error_m * 1e3
+                ),
+                Some(why) => format!("failed: {why}"),
+            });
             if let Some(why) = nothing {
                 match &out {
                     Some(dir) => anyhow::bail!("{why} (nothing written to {})", dir.display()),
@@ -427,7 +479,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             counts_rate,
             json,
-        } => cli::analyse::run_replay(robot, ticks, algorithm, counts_rate, out, json),
+            view,
+        } => cli::analyse::run_replay(robot, ticks, algorithm, counts_rate, out, json, &view),
         Command::Calibrate(a) => cli::calibrate::run_calibrate(a),
         Command::Probes { json } => cli::flash::run_probes(json),
         Command::InitBench { out, force } => cli::flash::run_init_bench(out, force),

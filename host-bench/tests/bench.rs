@@ -198,6 +198,7 @@ fn play_checking(
             stream: &stream,
             check_every,
             progress: None,
+            view: None,
         },
     )
 }
@@ -441,6 +442,7 @@ fn a_slave_reset_stops_a_recording_where_it_happened() {
             counts: false,
             robot: None,
             progress: None,
+            view: None,
         },
     )
     .unwrap();
@@ -796,6 +798,7 @@ fn request<'a>(ticks: &'a Path, robot: &'a Robot, stream: &'a TickStream) -> pla
         stream,
         check_every: play::CHECK_EVERY,
         progress: None,
+        view: None,
     }
 }
 

@@ -304,6 +304,7 @@ fn a_carriage_recording_plays_as_close_to_its_truth_as_it_replays() {
                 stream: &stream,
                 check_every: play::CHECK_EVERY,
                 progress: None,
+                view: None,
             },
         )
         .unwrap();
@@ -344,6 +345,7 @@ fn a_play_after_an_interrupted_one_runs_whole() {
                 stream: &s,
                 check_every: play::CHECK_EVERY,
                 progress: None,
+                view: None,
             },
         )
     };

@@ -195,6 +195,7 @@ pub fn drive_squares(
             counts: false,
             robot: Some(sq.robot_file),
             progress: sq.progress,
+            view: None,
         };
         let rec = record_moving(link, &req, Some(&mut driver));
         // Whatever happened, the motors stop.

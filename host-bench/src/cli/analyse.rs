@@ -117,6 +117,7 @@ pub fn run_replay(
     counts_rate: Option<f64>,
     out: Option<PathBuf>,
     json: bool,
+    view: &host_bench::viewer::ViewArgs,
 ) -> anyhow::Result<()> {
     use host_bench::eval::{board_poses, replay, replay_checks as checks};
     use host_bench::formats::{robot::Robot, tickstream};
@@ -171,13 +172,20 @@ pub fn run_replay(
         }
         None => None,
     };
+    let mut outputs = host_bench::viewer::Outputs::open(
+        view,
+        host_bench::viewer::topics::replay_channels(&names),
+        "host-bench replay",
+    )?;
+    // Each method's track, kept for the view (shown together at the end, in time order).
+    let mut tracks = Vec::new();
     // A named algorithm must run; with `all`, the ones that cannot apply to this robot or
     // mode (e.g. `timing` on sampled counts) are skipped with the reason.
     let mut scores = Vec::new();
     let mut skipped = Vec::new();
     let mut staged = Staged::default();
     for name in &names {
-        let run = if out.is_some() {
+        let run = if out.is_some() || outputs.view.borrow().is_on() {
             replay::replay
         } else {
             replay::replay_untracked
@@ -191,7 +199,10 @@ pub fn run_replay(
                     let path = dir.join(format!("{}.csv", s.name));
                     staged.write(&path, |f| s.write_track_to(f))?;
                 }
-                s.track = Vec::new();
+                let track = std::mem::take(&mut s.track);
+                if outputs.view.borrow().is_on() {
+                    tracks.push((s.name.clone(), track));
+                }
                 scores.push(s)
             }
             Err(e) if algorithm == "all" => {
@@ -215,10 +226,13 @@ pub fn run_replay(
         };
         anyhow::bail!("{}: no estimator can run: {why}", ticks.display());
     }
+    host_bench::viewer::topics::replay_tracks(&mut outputs.view.borrow_mut(), &tracks)?;
+    drop(tracks);
     staged.commit()?;
     if let Some(made) = made {
         made.keep();
     }
+    let mcap = outputs.finish()?;
     if json {
         println!(
             "{}",
@@ -260,6 +274,10 @@ pub fn run_replay(
                 b.file
             );
         }
+        if let Some(p) = &mcap {
+            println!("wrote {}", p.display());
+        }
     }
+    outputs.hold(&format!("done: {} methods scored", scores.len()));
     Ok(())
 }

@@ -9,6 +9,7 @@ use host_bench::boards::bench_file;
 use host_bench::formats::{robot::Robot, tickstream};
 use host_bench::serial::{link::Link, play, played_stream, record};
 use host_bench::sim::virtual_board;
+use host_bench::viewer::{topics, Outputs, ViewArgs};
 
 /// Where the master's serial link is: --port/--baud, else bench.toml's `[link]`.
 #[derive(Args, Clone, Debug)]
@@ -113,6 +114,8 @@ pub struct PlayArgs {
     /// Fault injection: do not send these Events frames at all.
     #[arg(long, value_name = "K,..", value_delimiter = ',')]
     pub fault_drop_frames: Vec<u64>,
+    #[command(flatten)]
+    pub view: ViewArgs,
 }
 
 pub fn run_play(a: PlayArgs) -> Result<()> {
@@ -141,6 +144,8 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
     // its other callers).
     played_stream::check_rows(&stream, &robot)
         .map_err(|e| anyhow::anyhow!("{}: {e:#}", a.ticks.display()))?;
+    // A file that cannot be written, a port taken: said before the board is asked.
+    let mut outputs = Outputs::open(&a.view, topics::serial_channels(true), "host-bench play")?;
     let mut link = a.port.open()?;
     link.faults.corrupt = a.fault_corrupt_frames.clone();
     link.faults.drop = a.fault_drop_frames.clone();
@@ -155,6 +160,7 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             stream: &stream,
             check_every: a.check_every,
             progress: Some(&bar),
+            view: Some(&outputs.view),
         },
     )?;
     bar.finish_and_clear();
@@ -239,6 +245,21 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             _ => println!("vs truth       the stream has no truth rows"),
         }
     }
+    let verdict = match &outcome.first_mismatch {
+        Some(m) => format!("failed: the board differs from update {}", m.update),
+        None => {
+            if let Some(p) = outputs.finish()? {
+                if !a.json {
+                    println!("wrote          {}", p.display());
+                }
+            }
+            format!(
+                "done: {} of {} updates bit-exact",
+                outcome.board_updates, outcome.expected_updates
+            )
+        }
+    };
+    outputs.hold(&verdict);
     if let Some(m) = &outcome.first_mismatch {
         bail!(
             "the board and the host differ from update {} of {} on",
@@ -269,6 +290,8 @@ pub struct RecordArgs {
     /// Print the outcome as one JSON object.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub view: ViewArgs,
 }
 
 pub fn run_record(a: RecordArgs) -> Result<()> {
@@ -286,6 +309,7 @@ pub fn run_record(a: RecordArgs) -> Result<()> {
             bail!("--duration must be a number of seconds in (0, 604800] (a week), got {d}");
         }
     }
+    let mut outputs = Outputs::open(&a.view, topics::serial_channels(false), "host-bench record")?;
     let mut link = a.port.open()?;
     let bar = progress_bar("{spinner} recording {elapsed} {msg}");
     let outcome = record::record(
@@ -296,6 +320,7 @@ pub fn run_record(a: RecordArgs) -> Result<()> {
             counts: a.sensor == "counts",
             robot: a.robot.as_deref(),
             progress: Some(&bar),
+            view: Some(&outputs.view),
         },
     )?;
     bar.finish_and_clear();
@@ -325,6 +350,19 @@ pub fn run_record(a: RecordArgs) -> Result<()> {
             );
         }
     }
+    // The MCAP file goes with a whole recording only (the stream itself is kept either way,
+    // marked PARTIAL).
+    if outcome.partial.is_none() {
+        if let Some(p) = outputs.finish()? {
+            if !a.json {
+                println!("      {} (the run for the viewers)", p.display());
+            }
+        }
+    }
+    outputs.hold(&match &outcome.partial {
+        None => format!("done: {} ticks, {:.1} s", outcome.ticks, outcome.seconds),
+        Some(why) => format!("ended early: {why}"),
+    });
     // Written either way; but a recording that broke off, or a board left reading what it
     // recorded, is not a success.
     if let Some(why) = &outcome.partial {
@@ -488,6 +526,8 @@ pub struct VirtualBoardArgs {
     /// noise: every time that byte passes).
     #[arg(long, value_name = "OFFSET")]
     pub fault_spi_event_bit: Option<u32>,
+    #[command(flatten)]
+    pub view: ViewArgs,
 }
 
 pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
@@ -635,6 +675,23 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             anyhow::anyhow!("--true-robot: the virtual board cannot simulate it: {e}")
         })?;
     }
+    if a.view.live_hold.is_some() {
+        bail!("--live-hold: a virtual board serves until it is stopped; its view with it");
+    }
+    let mut channels = topics::emulate_channels(true);
+    channels.retain(|c| c.topic != "/master/target");
+    let mut outputs = Outputs::open(&a.view, channels, "host-bench virtual-board")?;
+    // With --mcap, Ctrl-C ends the serving and the file is finished (SIGTERM leaves none).
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let _own_ctrl_c = a
+        .view
+        .mcap
+        .is_some()
+        .then(host_bench::formats::atomic::OwnCtrlC::take);
+    if a.view.mcap.is_some() {
+        signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone())
+            .context("installing the Ctrl-C handler")?;
+    }
     let (pty, _slave_end, name) = virtual_board::open_pty()?;
     // The first line is the port, for scripts: `port: /dev/pts/N`.
     println!("port: {name}");
@@ -652,7 +709,17 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         )
     };
     eprintln!("virtual board (robot {robot_name}{truly}, {driven}) serving; Ctrl-C ends it");
-    virtual_board::serve(pty, &opts, &|| false)
+    let view = outputs.view.borrow().is_on().then_some(&outputs.view);
+    virtual_board::serve(
+        pty,
+        &opts,
+        &|| stop.load(std::sync::atomic::Ordering::Relaxed),
+        view,
+    )?;
+    if let Some(p) = outputs.finish()? {
+        eprintln!("wrote {}", p.display());
+    }
+    Ok(())
 }
 
 pub fn progress_bar(template: &str) -> indicatif::ProgressBar {

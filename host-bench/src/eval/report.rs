@@ -197,11 +197,13 @@ impl EmulateFiles {
 }
 
 /// Runs `scenario` writing `run.csv` and `path.svg` for `--out dir` (staged: see
-/// [`EmulateFiles`]). Every output is checked before the run starts.
+/// [`EmulateFiles`]). Every output is checked before the run starts. `also` sees every log
+/// row as it is made (the MCAP file, the live view).
 pub fn emulate_into(
     scenario: &Scenario,
     opts: &emulator::Options,
     dir: &Path,
+    also: &mut dyn FnMut(&emulator::LogRow) -> Result<()>,
 ) -> Result<(Run, EmulateFiles)> {
     emulator::check_options(opts)?;
     if dir.exists() && !dir.is_dir() {
@@ -228,7 +230,7 @@ pub fn emulate_into(
             .with_context(|| format!("--out {}", dir.display()))?;
     }
     let mut staged = Staged::default();
-    let run = stage_run_csv(scenario, opts, &csv_path, &mut staged)?;
+    let run = stage_run_csv(scenario, opts, &csv_path, &mut staged, also)?;
     let mut text = String::new();
     draw_run(
         &run,
@@ -252,6 +254,7 @@ fn stage_run_csv(
     opts: &emulator::Options,
     csv_path: &Path,
     staged: &mut Staged,
+    also: &mut dyn FnMut(&emulator::LogRow) -> Result<()>,
 ) -> Result<Run> {
     let mut plotted = Thinned::new(MAX_PLOTTED_ROWS);
     let rows = (opts.duration / opts.log_period).ceil().max(1.0);
@@ -268,6 +271,7 @@ fn stage_run_csv(
             scenario,
             opts,
             Some(&mut |row| {
+                also(&row)?;
                 if row_index.is_multiple_of(every) {
                     let written = w.serialize(&row);
                     write_failed = written.is_err();

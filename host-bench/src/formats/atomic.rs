@@ -246,6 +246,19 @@ fn write_temporary<T>(
     path: &Path,
     write: impl FnOnce(&mut File) -> anyhow::Result<T>,
 ) -> anyhow::Result<(tempfile::TempPath, Listed, T)> {
+    let (mut tmp, listed) = create_temporary(path)?;
+    let value = write(tmp.as_file_mut())
+        .and_then(|value| {
+            tmp.as_file().sync_all()?;
+            Ok(value)
+        })
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    // Closed: a run staging hundreds of files holds no descriptor for each.
+    Ok((tmp.into_temp_path(), listed, value))
+}
+
+/// An empty temporary file beside `path`, listed for the signal handler.
+fn create_temporary(path: &Path) -> anyhow::Result<(tempfile::NamedTempFile, Listed)> {
     check_output(path)?;
     let folder = folder_of(path);
     let name = path
@@ -260,7 +273,7 @@ fn write_temporary<T>(
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
     // Declared before the file, so dropped after it: the file is gone before it is unlisted.
     let mut listed = Listed(None);
-    let mut tmp = {
+    let tmp = {
         // Created and listed under the lock: a signal cannot fall between the two.
         let mut list = partials();
         let tmp = builder.tempfile_in(folder).with_context(|| {
@@ -274,14 +287,56 @@ fn write_temporary<T>(
         listed.0 = Some(tmp.path().to_path_buf());
         tmp
     };
-    let value = write(tmp.as_file_mut())
-        .and_then(|value| {
-            tmp.as_file().sync_all()?;
-            Ok(value)
+    Ok((tmp, listed))
+}
+
+/// A file written as a run goes (an MCAP file fed message by message), into its temporary
+/// file beside `path`; [`Partial::persist`] syncs it and renames it into place. Dropped
+/// before that (the run failed), or on a signal, it is deleted.
+pub struct Partial {
+    // Before `listed`: the file is gone before it is unlisted.
+    tmp: tempfile::NamedTempFile,
+    _listed: Listed,
+    path: PathBuf,
+}
+
+impl Partial {
+    pub fn create(path: &Path) -> anyhow::Result<Self> {
+        let (tmp, listed) = create_temporary(path)?;
+        Ok(Partial {
+            tmp,
+            _listed: listed,
+            path: path.to_path_buf(),
         })
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    // Closed: a run staging hundreds of files holds no descriptor for each.
-    Ok((tmp.into_temp_path(), listed, value))
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Synced and renamed over its path.
+    pub fn persist(self) -> anyhow::Result<()> {
+        let Partial { tmp, _listed, path } = self;
+        tmp.as_file()
+            .sync_all()
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        rename(tmp.into_temp_path(), &path)
+    }
+}
+
+impl std::io::Write for Partial {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.tmp.write(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.tmp.flush()
+    }
+}
+
+impl std::io::Seek for Partial {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.tmp.seek(pos)
+    }
 }
 
 fn rename(tmp: tempfile::TempPath, path: &Path) -> anyhow::Result<()> {

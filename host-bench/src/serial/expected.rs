@@ -79,7 +79,7 @@ impl<'s, 'a> Expected<'s, 'a> {
     pub fn report_of(
         &mut self,
         update: u64,
-        mut seen: impl FnMut(&protocol::Pose),
+        mut seen: impl FnMut(u64, &protocol::Pose),
     ) -> Result<Option<Report>> {
         while let Some(r) = self.next_report()? {
             let Report::Pose {
@@ -88,7 +88,7 @@ impl<'s, 'a> Expected<'s, 'a> {
             else {
                 continue;
             };
-            seen(&pose);
+            seen(u64::from(u), &pose);
             match u64::from(u).cmp(&update) {
                 std::cmp::Ordering::Less => {}
                 std::cmp::Ordering::Equal => return Ok(Some(r)),

@@ -7,6 +7,7 @@
 //! pose reports, which must equal the expected ones exactly (micrometre pose and the digest of
 //! the full-precision pose). Playback runs as fast as the link allows, in played time.
 
+use std::cell::RefCell;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -26,6 +27,7 @@ use super::played_stream::{self, PlayedStream};
 use super::scorer::Scorer;
 use super::session;
 use crate::formats::robot::Robot;
+use crate::viewer::{topics, View};
 
 /// Host-side event buffer: bytes offered to the link ahead of the master's credit.
 const SEND_BUFFER: usize = 16 * 1024;
@@ -100,6 +102,9 @@ pub struct PlayRequest<'a> {
     /// Report every this many updates in full (1: all of them).
     pub check_every: u16,
     pub progress: Option<&'a indicatif::ProgressBar>,
+    /// Where the play is shown as it goes (`--mcap`, `--live`): the channels of
+    /// [`crate::viewer::topics::serial_channels`].
+    pub view: Option<&'a RefCell<View>>,
 }
 
 /// Updates between the poses a play reports in full, by default: a pose report every 50 ms
@@ -150,6 +155,7 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
         },
         until: stream.updates,
         progress: req.progress,
+        view: req.view,
     };
     let wall = Instant::now();
     let mut run = plan.run(link)?;
@@ -167,6 +173,8 @@ pub fn play(link: &mut Link, req: &PlayRequest) -> Result<PlayOutcome> {
             },
             until: bad.update,
             progress: None,
+            // Shown once: the window played again would take the run's time back.
+            view: None,
             ..plan
         };
         let again = window.run(link)?;
@@ -247,6 +255,7 @@ struct Pass<'p, 's, 'a> {
     checks: PoseChecks,
     until: u64,
     progress: Option<&'p indicatif::ProgressBar>,
+    view: Option<&'p RefCell<View>>,
 }
 
 /// What a pass showed.
@@ -299,6 +308,12 @@ impl Pass<'_, '_, '_> {
         let mut reports = 0u64;
         let mut first_bad = None;
         let mut scorer = Scorer::new(stream.truth(), stream.period_us, start.to_pose2());
+        if self.view.is_some() {
+            scorer = scorer.keep_rows();
+        }
+        let period_s = stream.period_us as f64 * 1e-6;
+        // The host's poses as it computes them, and the rows scored, for the view.
+        let mut host_poses: Vec<(u64, Pose2)> = Vec::new();
         let mut progress = Progress::new(link);
         if let Some(bar) = self.progress {
             bar.set_length(self.until);
@@ -370,10 +385,31 @@ impl Pass<'_, '_, '_> {
                 match r {
                     Report::Pose { update, .. } => {
                         reports += 1;
-                        let want = expected.report_of(u64::from(update), |p| {
+                        let want = expected.report_of(u64::from(update), |k, p| {
                             let (x, y, th) = p.to_si();
                             scorer.push(Pose2::new(x, y, th));
+                            if self.view.is_some() {
+                                host_poses.push((k, Pose2::new(x, y, th)));
+                            }
                         })?;
+                        if let Some(v) = self.view {
+                            let board = match r {
+                                Report::Pose { pose, .. } => {
+                                    let (x, y, th) = pose.to_si();
+                                    Pose2::new(x, y, th)
+                                }
+                                _ => unreachable!(),
+                            };
+                            show(
+                                &mut v.borrow_mut(),
+                                period_s,
+                                (u64::from(update), board),
+                                &mut host_poses,
+                                scorer.take_rows(),
+                                link,
+                                good,
+                            )?;
+                        }
                         if want.as_ref() == Some(&r) {
                             good = u64::from(update);
                         } else {
@@ -396,7 +432,7 @@ impl Pass<'_, '_, '_> {
                 bar.set_position(good);
             }
         }
-        if good == stream.updates && expected.report_of(good + 1, |_| {})?.is_some() {
+        if good == stream.updates && expected.report_of(good + 1, |_, _| {})?.is_some() {
             bail!(
                 "the host's own decoder makes more than the {} updates counted from the \
                  stream: a host bug",
@@ -411,6 +447,46 @@ impl Pass<'_, '_, '_> {
             scores: scorer.finish(),
         })
     }
+}
+
+/// A board pose report as the view's messages, with the host's poses and the truth rows up
+/// to it.
+fn show(
+    view: &mut View,
+    period_s: f64,
+    (update, board): (u64, Pose2),
+    host: &mut Vec<(u64, Pose2)>,
+    truth_rows: Vec<(u64, Pose2, Pose2)>,
+    link: &Link,
+    good: u64,
+) -> Result<()> {
+    let si = |p: Pose2| (p.x, p.y, p.theta);
+    for (t_ns, est, truth) in truth_rows {
+        let t = t_ns as f64 * 1e-9;
+        view.transform("/tf", "robot", t, si(truth))?;
+        view.pose("/truth/pose", t, si(truth))?;
+        view.json("/board/error", t, &topics::pose_error(si(est), si(truth)))?;
+    }
+    for (k, p) in host.drain(..) {
+        view.pose("/host/pose", k as f64 * period_s, si(p))?;
+    }
+    let t = update as f64 * period_s;
+    view.pose("/board/pose", t, si(board))?;
+    let s = &link.stats;
+    view.json(
+        "/link",
+        t,
+        &serde_json::json!({
+            "baud": link.baud(),
+            "bytes_out": s.bytes_sent,
+            "bytes_in": s.bytes_received,
+            "frames_out": s.frames_sent,
+            "frames_in": s.frames_received,
+            "frames_rejected": s.frames_rejected,
+            "events_frames": s.events_frames,
+            "updates_checked": good,
+        }),
+    )
 }
 
 /// When the play last moved on: an update more, or event bytes acknowledged that were not.

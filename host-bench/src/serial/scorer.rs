@@ -15,6 +15,9 @@ pub struct Scorer<I: Iterator<Item = (u64, Pose2)>> {
     final_error: Option<f64>,
     max: f64,
     rows: usize,
+    /// With [`keep_rows`](Self::keep_rows): each row scored since the last
+    /// [`take_rows`](Self::take_rows), as (t ns, estimate, truth).
+    kept: Option<Vec<(u64, Pose2, Pose2)>>,
 }
 
 impl<I: Iterator<Item = (u64, Pose2)>> Scorer<I> {
@@ -29,7 +32,19 @@ impl<I: Iterator<Item = (u64, Pose2)>> Scorer<I> {
             final_error: None,
             max: 0.0,
             rows: 0,
+            kept: None,
         }
+    }
+
+    /// Keep each scored row for [`take_rows`](Self::take_rows) (the live view, the MCAP file).
+    pub fn keep_rows(mut self) -> Self {
+        self.kept = Some(Vec::new());
+        self
+    }
+
+    /// The rows scored since the last call, as (t ns, estimate, truth).
+    pub fn take_rows(&mut self) -> Vec<(u64, Pose2, Pose2)> {
+        self.kept.as_mut().map(std::mem::take).unwrap_or_default()
     }
 
     /// The pose of the next update.
@@ -61,6 +76,9 @@ impl<I: Iterator<Item = (u64, Pose2)>> Scorer<I> {
             self.max = self.max.max(e);
             self.final_error = Some(e);
             self.rows += 1;
+            if let Some(k) = &mut self.kept {
+                k.push((t_ns, est, truth));
+            }
         }
     }
 

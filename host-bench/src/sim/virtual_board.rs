@@ -255,7 +255,14 @@ pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
 }
 
 /// Serve on `pty` until `stop` says so (forever for the CLI).
-pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Result<()> {
+/// Serves `pty` until `stop()` says so. `view` (`--mcap`, `--live`) is shown the run every
+/// 10 ms of its time: the channels of [`crate::viewer::topics::emulate_channels`] with `/link`.
+pub fn serve(
+    mut pty: TTYPort,
+    opts: &Options,
+    stop: &dyn Fn() -> bool,
+    view: Option<&RefCell<crate::viewer::View>>,
+) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     let sensors =
         MeasuringSensors::from_layout(opts.true_layout.as_ref().unwrap_or(opts.slave.layout()))
@@ -374,6 +381,8 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         Instant::MAX
     };
     let mut next_truth = Instant::from_ticks(0);
+    let mut next_view = Instant::from_ticks(0);
+    let (mut bytes_from_host, mut bytes_to_host) = (0u64, 0u64);
     let mut rewrite = FrameDecoder::new();
     let mut buf = [0u8; 4096];
     sim.run_until_idle();
@@ -403,7 +412,10 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
         let now = sim.now();
         // Host -> master: whatever the pty has, through the adapter at the line's pace.
         match pty.read(&mut buf) {
-            Ok(n) if n > 0 => adapter.from_host(&buf[..n]),
+            Ok(n) if n > 0 => {
+                bytes_from_host += n as u64;
+                adapter.from_host(&buf[..n])
+            }
             Ok(_) => {}
             Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
             Err(e) if e.kind() == ErrorKind::Interrupted => {}
@@ -445,8 +457,37 @@ pub fn serve(mut pty: TTYPort, opts: &Options, stop: &dyn Fn() -> bool) -> Resul
             }
         }
         if !out.is_empty() {
+            bytes_to_host += out.len() as u64;
             // Nobody reading: the bytes are lost, as on a UART with nothing attached.
             let _ = pty.write_all(&out);
+        }
+        if let Some(v) = view.filter(|_| sim.now() >= next_view) {
+            next_view = sim.now() + Duration::from_millis(10);
+            let t_s = sim.now().as_micros() as f64 * 1e-6;
+            let row = super::emulator::log_row(
+                t_s,
+                &plant.borrow(),
+                &slave_shared,
+                &master_shared,
+                sim.now(),
+                None,
+            );
+            let mut v = v.borrow_mut();
+            crate::viewer::topics::emulate_row(&mut v, &row)?;
+            let counters = master_shared.with(|c| c.counters()).unwrap_or_default();
+            v.json(
+                "/link",
+                t_s,
+                &serde_json::json!({
+                    "baud": rate,
+                    "bytes_from_host": bytes_from_host,
+                    "bytes_to_host": bytes_to_host,
+                    "spi_frames_ok": counters.spi_ok,
+                    "spi_frames_rejected": counters.spi_rejected,
+                    "serial_frames_ok": counters.serial_ok,
+                    "serial_frames_rejected": counters.serial_rejected,
+                }),
+            )?;
         }
         std::thread::sleep(WallDuration::from_micros(500));
     }

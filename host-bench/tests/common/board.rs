@@ -25,7 +25,7 @@ impl Board {
         let s = stop.clone();
         let thread = std::thread::spawn(move || {
             let _keep = slave_end;
-            virtual_board::serve(pty, &opts, &|| s.load(Ordering::Relaxed)).expect("serve");
+            virtual_board::serve(pty, &opts, &|| s.load(Ordering::Relaxed), None).expect("serve");
         });
         Board {
             port,
@@ -57,5 +57,6 @@ pub fn recording<'a>(out: &'a Path, robot: Option<&'a Path>, counts: bool) -> Re
         counts,
         robot,
         progress: None,
+        view: None,
     }
 }

@@ -18,6 +18,7 @@ use protocol::spi::{Reports, SensorSource};
 use serde::Serialize;
 
 mod collect;
+mod show;
 mod write;
 
 use collect::{board_ns, take_reports, Collected, Early};
@@ -39,6 +40,9 @@ pub struct RecordRequest<'a> {
     /// power-on robot (seed 004), whose file is written beside the stream.
     pub robot: Option<&'a Path>,
     pub progress: Option<&'a indicatif::ProgressBar>,
+    /// Where the recording is shown as it goes: the channels of
+    /// [`crate::viewer::topics::serial_channels`].
+    pub view: Option<&'a std::cell::RefCell<crate::viewer::View>>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -197,6 +201,7 @@ pub fn record_moving(
     let mut last_record = Instant::now();
     let mut bytes_at_record = link.stats.bytes_received;
     // Why it stopped: the user's stop (`Ok`) or an early end (`Err`, the reason).
+    let mut shown = show::Shown::default();
     let stopped: std::result::Result<&str, Early> = loop {
         if stop.load(Ordering::Relaxed) {
             break Ok("ctrl-c");
@@ -280,6 +285,11 @@ pub fn record_moving(
                 bytes_at_record = link.stats.bytes_received;
             }
             Err(e) => break Err(e),
+        }
+        if let Some(v) = req.view {
+            if let Err(e) = shown.show(v, &c, link) {
+                break Err(Early::new("view", format!("{e:#}")));
+            }
         }
     };
     let seconds = wall.elapsed().as_secs_f64();

@@ -541,7 +541,7 @@ async fn until(at: Option<Instant>, f: impl std::future::Future) {
     }
 }
 
-fn log_row(
+pub(crate) fn log_row(
     t_s: f64,
     plant: &Plant,
     slave: &SlaveShared,

@@ -1,0 +1,561 @@
+//! Runs you can look at, end to end through the `host-bench` binary: the MCAP files of
+//! `emulate`, `play` and `replay` read back with the `mcap` crate; `--live` from a WebSocket
+//! client as Foxglove and Lichtblick connect; the bench page in a real headless Chromium.
+
+#[path = "common/board.rs"]
+mod board;
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use board::Board;
+use host_bench::sim::virtual_board;
+use tungstenite::client::IntoClientRequest;
+use tungstenite::Message;
+
+const BIN: &str = env!("CARGO_BIN_EXE_host-bench");
+
+fn circle() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/tickstreams/python-circle.csv")
+}
+
+/// One channel as read back: schema name, message encoding, messages (log time, JSON).
+#[derive(Debug, Default)]
+struct ReadChannel {
+    schema: String,
+    encoding: String,
+    messages: Vec<(u64, serde_json::Value)>,
+}
+
+/// The file's channels by topic; panics unless every log time is at or after the one
+/// before it in file order, and the summary's counts equal what was read.
+fn read_mcap(path: &Path) -> BTreeMap<String, ReadChannel> {
+    let bytes = std::fs::read(path).unwrap();
+    let mut channels: BTreeMap<String, ReadChannel> = BTreeMap::new();
+    let mut last = 0u64;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        assert!(
+            m.log_time >= last,
+            "log time went back on {}",
+            m.channel.topic
+        );
+        last = m.log_time;
+        let c = channels.entry(m.channel.topic.clone()).or_default();
+        c.schema = m.channel.schema.as_ref().unwrap().name.clone();
+        assert_eq!(m.channel.schema.as_ref().unwrap().encoding, "jsonschema");
+        c.encoding = m.channel.message_encoding.clone();
+        c.messages
+            .push((m.log_time, serde_json::from_slice(&m.data).unwrap()));
+    }
+    let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary");
+    let stats = summary.stats.expect("statistics");
+    for (id, ch) in &summary.channels {
+        let n = stats.channel_message_counts.get(id).copied().unwrap_or(0);
+        let read = channels.get(&ch.topic).map_or(0, |c| c.messages.len());
+        assert_eq!(n as usize, read, "{}: summary count", ch.topic);
+        channels.entry(ch.topic.clone()).or_default();
+    }
+    channels
+}
+
+fn count(ch: &BTreeMap<String, ReadChannel>, topic: &str) -> usize {
+    ch.get(topic).map_or(0, |c| c.messages.len())
+}
+
+#[test]
+fn emulate_writes_an_mcap_file_the_viewers_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("run.mcap");
+    let out = Command::new(BIN)
+        .args(["emulate", "--duration", "2", "--mcap"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ch = read_mcap(&file);
+    let schema = |t: &str| ch[t].schema.as_str();
+    assert_eq!(schema("/tf"), "foxglove.FrameTransform");
+    for t in [
+        "/truth/pose",
+        "/slave/pose",
+        "/master/estimate",
+        "/master/target",
+    ] {
+        assert_eq!(schema(t), "foxglove.PoseInFrame", "{t}");
+    }
+    assert_eq!(schema("/slave/error"), "omnibench.PoseError");
+    assert_eq!(schema("/master/wheels"), "omnibench.Wheels");
+    assert_eq!(schema("/master/status"), "omnibench.Status");
+    assert!(ch.values().all(|c| c.encoding == "json"));
+    // A row every 10 ms of simulated time, logged at its own time.
+    assert_eq!(count(&ch, "/truth/pose"), 200);
+    assert_eq!(count(&ch, "/slave/pose"), 200);
+    let truth = &ch["/truth/pose"].messages;
+    assert!(truth[0].0 < 10_000_000, "first row at {} ns", truth[0].0);
+    assert!(truth.windows(2).all(|w| w[1].0 == w[0].0 + 10_000_000));
+    // The robot moves, and the slave follows it to well under a millimetre.
+    let (_, last) = &truth[199];
+    assert!(last["pose"]["position"]["x"].as_f64().unwrap().abs() > 0.01);
+    let q = &last["pose"]["orientation"];
+    let norm: f64 = ["x", "y", "z", "w"]
+        .iter()
+        .map(|k| q[*k].as_f64().unwrap().powi(2))
+        .sum();
+    assert!((norm - 1.0).abs() < 1e-9);
+    let err = &ch["/slave/error"].messages;
+    assert!(err
+        .iter()
+        .all(|(_, e)| e["position_mm"].as_f64().unwrap() < 1.0));
+    assert!(ch["/master/status"].messages[100].1["set"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|f| f == "motors on"));
+}
+
+#[test]
+fn a_run_that_fails_leaves_no_mcap_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("run.mcap");
+    // The slave switched off from the start: nothing is scored.
+    let out = Command::new(BIN)
+        .args([
+            "emulate",
+            "--duration",
+            "1",
+            "--fault-slave-off-at",
+            "0",
+            "--mcap",
+        ])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "left a file"
+    );
+    // A folder that does not exist: said before the run, naming the option.
+    let out = Command::new(BIN)
+        .args([
+            "emulate",
+            "--duration",
+            "1",
+            "--mcap",
+            "/nonexistent/run.mcap",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--mcap /nonexistent/run.mcap"),
+        "{err}"
+    );
+}
+
+#[test]
+fn play_and_replay_write_mcap_files_the_viewers_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let board = Board::start(virtual_board::Options::default());
+    let file = dir.path().join("play.mcap");
+    let out = Command::new(BIN)
+        .args(["play", "--json", "--port", &board.port, "--ticks"])
+        .arg(circle())
+        .arg("--mcap")
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let outcome: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let ch = read_mcap(&file);
+    // Every update the host computed, every pose the board reported, every truth row scored.
+    assert_eq!(
+        count(&ch, "/host/pose") as u64,
+        outcome["expected_updates"].as_u64().unwrap()
+    );
+    assert_eq!(
+        count(&ch, "/board/pose") as u64,
+        outcome["poses_reported"].as_u64().unwrap()
+    );
+    assert_eq!(
+        count(&ch, "/truth/pose") as u64,
+        outcome["scored_rows"].as_u64().unwrap()
+    );
+    assert_eq!(count(&ch, "/board/error"), count(&ch, "/truth/pose"));
+    assert_eq!(count(&ch, "/link"), count(&ch, "/board/pose"));
+    assert_eq!(ch["/board/pose"].schema, "foxglove.PoseInFrame");
+    // The board's reported poses are the host's at the same updates.
+    let host: BTreeMap<u64, &serde_json::Value> = ch["/host/pose"]
+        .messages
+        .iter()
+        .map(|(t, m)| (*t, m))
+        .collect();
+    for (t, m) in &ch["/board/pose"].messages {
+        assert_eq!(m["pose"], host[t]["pose"], "at {t} ns");
+    }
+
+    let file = dir.path().join("replay.mcap");
+    let out = Command::new(BIN)
+        .args(["replay", "--algorithm", "all", "--ticks"])
+        .arg(circle())
+        .arg("--mcap")
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ch = read_mcap(&file);
+    let rows = count(&ch, "/truth/pose");
+    assert!(rows > 50, "{rows} truth rows");
+    for m in ["arc", "lut", "timing", "exact"] {
+        assert_eq!(count(&ch, &format!("/odometry/{m}/pose")), rows, "{m}");
+        assert_eq!(count(&ch, &format!("/odometry/{m}/error")), rows, "{m}");
+    }
+}
+
+/// `host-bench ARGS --live 127.0.0.1:0 ...`, and the port it serves on (from its stderr).
+fn start_live(args: &[&str]) -> (Child, u16) {
+    let mut child = Command::new(BIN)
+        .args(args)
+        .args(["--live", "127.0.0.1:0"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    let first = lines.next().unwrap().unwrap();
+    let port = first
+        .split("ws://127.0.0.1:")
+        .nth(1)
+        .and_then(|s| s.split(|c: char| !c.is_ascii_digit()).next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no address in {first:?}"));
+    // The rest of stderr is drained, so the child never blocks on it.
+    std::thread::spawn(move || lines.for_each(drop));
+    (child, port)
+}
+
+fn ws_connect(
+    port: u16,
+    subprotocol: &str,
+) -> tungstenite::Result<(
+    tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>,
+    tungstenite::handshake::client::Response,
+)> {
+    let mut req = format!("ws://127.0.0.1:{port}/")
+        .into_client_request()
+        .unwrap();
+    req.headers_mut()
+        .insert("sec-websocket-protocol", subprotocol.parse().unwrap());
+    tungstenite::connect(req)
+}
+
+/// The next JSON control message with `op`.
+fn next_op<S: Read + Write>(ws: &mut tungstenite::WebSocket<S>, op: &str) -> serde_json::Value {
+    loop {
+        if let Message::Text(t) = ws.read().unwrap() {
+            let v: serde_json::Value = serde_json::from_str(t.as_str()).unwrap();
+            if v["op"] == op {
+                return v;
+            }
+        }
+    }
+}
+
+#[test]
+fn the_live_view_serves_poses_in_order_under_both_subprotocols() {
+    let (mut child, port) = start_live(&[
+        "emulate",
+        "--duration",
+        "2",
+        "--live-speed",
+        "2",
+        "--live-hold",
+        "2",
+    ]);
+    let (mut ws, resp) = ws_connect(port, "foxglove.websocket.v1").unwrap();
+    assert_eq!(
+        resp.headers()["sec-websocket-protocol"],
+        "foxglove.websocket.v1"
+    );
+    assert!(next_op(&mut ws, "serverInfo")["name"]
+        .as_str()
+        .unwrap()
+        .contains("omnibench"));
+    let adv = next_op(&mut ws, "advertise");
+    let slave = adv["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["topic"] == "/slave/pose")
+        .expect("/slave/pose advertised");
+    assert_eq!(slave["schemaName"], "foxglove.PoseInFrame");
+    assert_eq!(slave["encoding"], "json");
+    ws.send(Message::text(
+        serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": slave["id"]}]})
+            .to_string(),
+    ))
+    .unwrap();
+    // The other name in use is accepted too; one of neither is refused.
+    let (_, resp) = ws_connect(port, "foxglove.sdk.v1").unwrap();
+    assert_eq!(resp.headers()["sec-websocket-protocol"], "foxglove.sdk.v1");
+    match ws_connect(port, "something.else") {
+        Err(tungstenite::Error::Http(r)) => assert_eq!(r.status(), 400),
+        other => panic!("not refused: {:?}", other.map(|(_, r)| r.status())),
+    }
+    let mut poses = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while poses.len() < 200 && Instant::now() < deadline {
+        match ws.read().unwrap() {
+            Message::Binary(b) => {
+                assert_eq!(b[0], 1, "message data");
+                assert_eq!(u32::from_le_bytes(b[1..5].try_into().unwrap()), 7);
+                let t = u64::from_le_bytes(b[5..13].try_into().unwrap());
+                let m: serde_json::Value = serde_json::from_slice(&b[13..]).unwrap();
+                poses.push((t, m["pose"]["position"]["x"].as_f64().unwrap()));
+            }
+            _ => continue,
+        }
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(poses.len(), 200, "a pose every 10 ms of the 2 s run");
+    assert!(
+        poses.windows(2).all(|w| w[1].0 == w[0].0 + 10_000_000),
+        "in order, none lost"
+    );
+    assert!((poses[199].1 - poses[0].1).abs() > 0.01, "the robot moved");
+}
+
+/// A small HTTP GET, for Chromium's DevTools endpoint: the body, by its Content-Length (the
+/// endpoint keeps the connection open).
+fn http_get(port: u16, path: &str) -> std::io::Result<String> {
+    let s = TcpStream::connect(("127.0.0.1", port))?;
+    s.set_read_timeout(Some(Duration::from_secs(5)))?;
+    write!(&s, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n")?;
+    let mut r = BufReader::new(s);
+    let mut len = 0;
+    loop {
+        let mut line = String::new();
+        r.read_line(&mut line)?;
+        let line = line.trim_end();
+        if line.is_empty() {
+            break;
+        }
+        if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
+            len = v.trim().parse().unwrap_or(0);
+        }
+    }
+    let mut body = vec![0; len];
+    r.read_exact(&mut body)?;
+    Ok(String::from_utf8_lossy(&body).into_owned())
+}
+
+/// Chromium on the bench page, driven over the DevTools protocol.
+struct Browser {
+    child: Child,
+    ws: tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>,
+    id: u64,
+    _profile: tempfile::TempDir,
+}
+
+impl Browser {
+    /// `Ok(None)`: there is no Chromium here.
+    fn open(url: &str) -> Result<Option<Browser>, String> {
+        let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
+            .into_iter()
+            .find(|c| Command::new(c).arg("--version").output().is_ok())
+        else {
+            return Ok(None);
+        };
+        let profile = tempfile::tempdir().unwrap();
+        let mut child = Command::new(chromium)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-quic",
+                "--no-first-run",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--window-size=1280,900",
+                "--remote-debugging-port=0",
+            ])
+            .arg(format!("--user-data-dir={}", profile.path().display()))
+            .arg(url)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("{chromium}: {e}"))?;
+        let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+        let port: u16 = loop {
+            let Some(Ok(line)) = lines.next() else {
+                return Err(format!("{chromium} ended without its DevTools address"));
+            };
+            if let Some(rest) = line.split("ws://127.0.0.1:").nth(1) {
+                break rest
+                    .split('/')
+                    .next()
+                    .and_then(|p| p.parse().ok())
+                    .ok_or(line)?;
+            }
+        };
+        std::thread::spawn(move || lines.for_each(drop));
+        // The page's target appears once Chromium has opened it.
+        let deadline = Instant::now() + Duration::from_secs(10);
+        let page = loop {
+            let list = http_get(port, "/json/list").unwrap_or_else(|e| e.to_string());
+            let targets: serde_json::Value = serde_json::from_str(&list).unwrap_or_default();
+            let found = (targets.as_array().into_iter().flatten())
+                .find(|t| {
+                    t["type"] == "page" && t["url"].as_str().is_some_and(|u| u.starts_with("http"))
+                })
+                .and_then(|t| t["webSocketDebuggerUrl"].as_str().map(str::to_string));
+            match found {
+                Some(p) => break p,
+                None if Instant::now() > deadline => return Err(format!("no page target: {list}")),
+                None => std::thread::sleep(Duration::from_millis(100)),
+            }
+        };
+        let (ws, _) = tungstenite::connect(&page).map_err(|e| format!("{page}: {e}"))?;
+        Ok(Some(Browser {
+            child,
+            ws,
+            id: 0,
+            _profile: profile,
+        }))
+    }
+
+    fn call(&mut self, method: &str, params: serde_json::Value) -> serde_json::Value {
+        self.id += 1;
+        let id = self.id;
+        self.ws
+            .send(Message::text(
+                serde_json::json!({"id": id, "method": method, "params": params}).to_string(),
+            ))
+            .unwrap();
+        loop {
+            if let Message::Text(t) = self.ws.read().unwrap() {
+                let v: serde_json::Value = serde_json::from_str(t.as_str()).unwrap();
+                if v["id"] == id {
+                    return v["result"].clone();
+                }
+            }
+        }
+    }
+
+    /// An expression's value in the page, as JSON.
+    fn eval(&mut self, expr: &str) -> serde_json::Value {
+        let r = self.call(
+            "Runtime.evaluate",
+            serde_json::json!({"expression": format!("JSON.stringify({expr})"), "returnByValue": true}),
+        );
+        serde_json::from_str(r["result"]["value"].as_str().unwrap_or("null")).unwrap()
+    }
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// What the page shows: run time and message count on screen, points per path, coloured
+/// pixels on the field (the paths; the grid is grey, the truth black).
+const PAGE_STATE: &str = r#"{
+  shown_t: parseFloat(document.getElementById('t').textContent),
+  shown_count: parseInt(document.getElementById('count').textContent),
+  conn: document.getElementById('conn').textContent,
+  paths: Object.fromEntries(Object.entries(bench.paths).map(([k, v]) => [k, v.length])),
+  rows: document.querySelectorAll('#numbers tr').length,
+  inked: (() => { const c = document.getElementById('field');
+    const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    let n = 0; for (let i = 0; i < d.length; i += 4)
+      if (d[i+3] > 0 && Math.max(d[i], d[i+1], d[i+2]) - Math.min(d[i], d[i+1], d[i+2]) > 80) n++;
+    return n; })()
+}"#;
+
+#[test]
+fn the_bench_page_draws_the_run_in_a_headless_browser() {
+    let required = std::env::var("OMNIBENCH_BROWSER_TEST").is_ok_and(|v| v == "require");
+    let (mut run, port) = start_live(&[
+        "emulate",
+        "--duration",
+        "6",
+        "--live-speed",
+        "1",
+        "--live-hold",
+        "5",
+    ]);
+    let opened = Browser::open(&format!("http://127.0.0.1:{port}/"));
+    let Some(mut browser) = opened.unwrap_or_else(|e| panic!("Chromium: {e}")) else {
+        let _ = run.kill();
+        assert!(!required, "no Chromium: the bench page was not tested");
+        eprintln!("skipped: no Chromium here (.ci/run installs it and requires this test)");
+        return;
+    };
+    std::thread::sleep(Duration::from_millis(2000));
+    let early = browser.eval(PAGE_STATE);
+    std::thread::sleep(Duration::from_millis(2000));
+    let later = browser.eval(PAGE_STATE);
+    let shot = browser.call(
+        "Page.captureScreenshot",
+        serde_json::json!({"format": "png"}),
+    );
+    let _ = run.kill();
+    let _ = run.wait();
+    eprintln!("the page at 2 s: {early}\nthe page at 4 s: {later}");
+    assert_eq!(later["conn"], "open");
+    // The numbers on screen advance while the run plays.
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or(0.0);
+    assert!(num(&early, "shown_t") > 0.5, "{early}");
+    assert!(
+        num(&later, "shown_t") > num(&early, "shown_t") + 1.0,
+        "{later}"
+    );
+    assert!(num(&later, "shown_count") > num(&early, "shown_count"));
+    // The true and estimated paths are drawn as they grow.
+    for p in ["/truth/pose", "/slave/pose", "/master/estimate"] {
+        let (a, b) = (early["paths"][p].as_u64(), later["paths"][p].as_u64());
+        assert!(a.unwrap_or(0) > 10 && b > a, "{p}: {a:?} then {b:?}");
+    }
+    // ... in colour on the field, more of them as the run goes.
+    assert!(
+        num(&early, "inked") > 300.0,
+        "no path on the field: {early}"
+    );
+    assert!(
+        num(&later, "inked") > num(&early, "inked") + 300.0,
+        "the paths stopped: {later}"
+    );
+    assert!(num(&later, "rows") >= 3.0, "the numbers table: {later}");
+    // Kept for a person to look at (.ci/run copies it beside its log).
+    let png = base64::Engine::decode(
+        &base64::engine::general_purpose::STANDARD,
+        shot["data"].as_str().unwrap(),
+    )
+    .unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-page.png");
+    std::fs::write(&path, png).unwrap();
+    eprintln!("screenshot: {}", path.display());
+}
