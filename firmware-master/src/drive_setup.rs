@@ -76,7 +76,7 @@ impl DriveSetup {
 }
 
 /// Seed 004's robot: seed 003's three omni wheels, d = 0.22 m, v_max 1 m/s, its motors; seed 002's
-/// law with our gains (README, "Tracking (seed 002)").
+/// law with our gains (docs/motion.md, "Track a path").
 pub const SEED_004_DRIVE: DriveGeometry = DriveGeometry {
     kind: DriveKind::Omni3 { d_um: 220_000 },
     v_max_um_s: 1_000_000,

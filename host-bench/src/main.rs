@@ -134,8 +134,8 @@ enum Command {
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_serial_torn: Option<f64>,
     },
-    /// Every seed case, every sensor mode, all four odometry methods side by side, with the
-    /// papers' reported figures.
+    /// Every test case from the papers, every sensor mode, all four odometry methods side by
+    /// side, with the papers' reported figures.
     Accuracy {
         /// Print {"cases":[{case, robot, mode, path_length_m, seeds, phase, algorithms:[{name,
         /// final_error_m, median_error_m, max_error_m: {median, p95, max}}...]}...]}.
@@ -160,7 +160,7 @@ enum Command {
         )]
         edges: String,
     },
-    /// Seed 003's speed envelope of the three-omni drive: top translation speed in every
+    /// Yan (2013)'s speed envelope of the three-omni drive: top translation speed in every
     /// direction and with spin, from the model and driven flat out on the simulated robot,
     /// and where an arc with spin beats a straight line.
     Envelope {
@@ -172,9 +172,9 @@ enum Command {
         #[arg(long, value_name = "FILE.svg")]
         out: Option<PathBuf>,
     },
-    /// Seed 004's pursuit period: the default scenario emulated with the master running the
-    /// paper's Euler pursuit for τ = 0.1 ... 1.5 s (and our law as τ = 0), with the path's
-    /// jitter and the tracking error of each.
+    /// The pursuit period of Xu, Zhu and Hu (2015): the default scenario emulated with the
+    /// master running the paper's Euler pursuit for τ = 0.1 ... 1.5 s (and our law as τ = 0),
+    /// with the path's jitter and the tracking error of each.
     PursuitSweep {
         /// Print {"rows":[{tau_s, law, jitter, tracking_rms_m, hold_rms_m, hold_max_m, ...}]}.
         #[arg(long)]

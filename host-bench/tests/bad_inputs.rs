@@ -596,7 +596,7 @@ fn a_bad_input_hunts_findings_are_refused() {
             "--algorithm",
             "lut",
         ],
-        "seed 001's `lut` keeps positions in 32-bit units of 10 nm",
+        "`lut` (Batbayar and Zoljargal 2013) keeps positions in 32-bit units of 10 nm",
         None,
     );
 

@@ -1,4 +1,4 @@
-//! Power-on phases (issue 8): each encoder starts somewhere inside a count, so its first
+//! Power-on phases: each encoder starts somewhere inside a count, so its first
 //! forward tick comes after (1 − φ)·step of travel, its first backward one after φ·step, and
 //! its count is floor((φ·step + rolled) / step).
 

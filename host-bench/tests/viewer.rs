@@ -559,3 +559,62 @@ fn the_bench_page_draws_the_run_in_a_headless_browser() {
     std::fs::write(&path, png).unwrap();
     eprintln!("screenshot: {}", path.display());
 }
+
+/// The points of the longest line an SVG plot draws (plotters writes each as a `polyline`).
+fn longest_line(svg: &str) -> usize {
+    svg.split("<polyline")
+        .skip(1)
+        .map(|p| {
+            let points = p.split("points=\"").nth(1).unwrap_or("");
+            points.split('"').next().unwrap_or("").split(' ').count()
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// Every plot comes as SVG and PNG, and draws its data: `accuracy --out` drew empty axes for
+/// four days when the tracks it plots were let go before the pictures.
+#[test]
+fn plots_are_drawn_as_svg_and_png_with_their_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let acc = dir.path().join("acc");
+    let out = Command::new(BIN)
+        .args(["accuracy", "--seeds", "1", "--out"])
+        .arg(&acc)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let run = dir.path().join("run");
+    let out = Command::new(BIN)
+        .args(["emulate", "--duration", "2", "--out"])
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut svgs: Vec<PathBuf> = std::fs::read_dir(&acc)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "svg"))
+        .collect();
+    svgs.push(run.join("path.svg"));
+    assert!(svgs.len() > 20, "{} plots", svgs.len());
+    for svg in &svgs {
+        let text = std::fs::read_to_string(svg).unwrap();
+        assert!(
+            longest_line(&text) > 100,
+            "{}: no line drawn",
+            svg.display()
+        );
+        let png = std::fs::read(svg.with_extension("png")).unwrap();
+        assert_eq!(&png[1..4], b"PNG", "{}", svg.display());
+        assert!(png.len() > 20_000, "{}: a blank PNG", svg.display());
+    }
+}

@@ -30,7 +30,8 @@ pub struct CarriageGeometry {
 impl CarriageGeometry {
     /// Seed 004's sensors: Omron E6B2-C 1200 P/R (x4 = 4800 counts/rev) on 50 mm measuring
     /// wheels 200 mm apart, 60 mm trail, 256-position absolute encoder. The wheel size,
-    /// spacing and trail are not given in the paper; these are ours (README, "Robot").
+    /// spacing and trail are not given in the paper; these are ours (docs/design.md, "The
+    /// simulated robot, and what we assumed").
     pub const SEED_004: CarriageGeometry = CarriageGeometry {
         wheel_base: 0.200,
         trail: 0.060,

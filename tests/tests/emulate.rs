@@ -1,11 +1,12 @@
 //! The whole system, emulated: both boards' portable firmware, linked by an in-memory SPI bus,
 //! driven over the real serial protocol, closing the loop through the simulated robot.
 //!
-//! Bounds are set from measurement (README, "Accuracy"): over seeds 1-30 the slave's final
-//! error on the default scenario is at most 0.51 mm (`host-bench emulate --sweep 30`), so 1 mm
-//! leaves a 2x margin and still fails on any real regression; the heading error is bounded by
-//! half a step of the 8-bit absolute encoder (the slave reads body heading through it) plus
-//! the carriage heading's count quantisation.
+//! Bounds are set from measurement (docs/odometry.md, "The emulated robot over 30 power-on
+//! phases"): over seeds 1-30 the slave's final error on the default scenario is at most
+//! 0.51 mm (`host-bench emulate --sweep 30`), so 1 mm leaves a 2x margin and still fails on
+//! any real regression; the heading error is bounded by half a step of the 8-bit absolute
+//! encoder (the slave reads body heading through it) plus the carriage heading's count
+//! quantisation.
 
 use host_bench::sim::emulator::{self, Options, Run, Scenario};
 

@@ -1,5 +1,5 @@
-//! Where the emulated slave's final error comes from (issue 8; docs/odometry.md, "Where the
-//! emulator's final error comes from").
+//! Where the emulated slave's final error comes from (docs/odometry.md, "Where the emulator's
+//! final error comes from").
 //!
 //! On seed004-pursuit the slave's `exact` odometry used to end 0.19 mm (time stamps) / 0.21 mm
 //! (counts) from the truth with seed 1. Nearly all of it is the measuring wheels' *power-on

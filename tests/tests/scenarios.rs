@@ -114,7 +114,8 @@ fn every_scenario_file_runs_and_ends_holding_still() {
         assert_eq!(r.robot_uploaded, expected, "{}", s.name);
         if let Motion::Track { .. } = s.motion {
             // The velocity steps of the abrupt paths peak the error at each step (measured
-            // up to 26.1 and 16.1 mm over 10 seeds, README); the smooth paths are held to the goal.
+            // up to 26.1 and 16.1 mm over 10 seeds, docs/motion.md, "Track a path"); the smooth
+            // paths are held to the goal.
             let max = if ["seed002-abrupt", "seed002-square-steps"].contains(&s.name.as_str()) {
                 2.0 * MAX_GOAL_M
             } else {

@@ -1,6 +1,5 @@
 //! The analysis commands: `accuracy`, `replay` (`generate` is in `generate.rs`).
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -59,7 +58,7 @@ pub fn run_accuracy(
             );
             let svg = host_bench::eval::report::case_svg(&title, &first)?;
             let path = dir.join(format!("{stem}.svg"));
-            staged.write(&path, |f| Ok(f.write_all(svg.as_bytes())?))?;
+            host_bench::eval::png::stage(&mut staged, &path, &svg)?;
         }
         staged.commit()?;
     }
@@ -84,6 +83,7 @@ fn accuracy_files(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
         for mode in accuracy::modes() {
             let stem = accuracy::file_stem(case.trajectory, &robot.name, &mode.to_string());
             files.push(dir.join(format!("{stem}.svg")));
+            files.push(dir.join(format!("{stem}.png")));
             for name in replay::ALGORITHMS {
                 files.push(dir.join(format!("{stem}-{name}.csv")));
             }

@@ -1,19 +1,18 @@
 //! `host-bench envelope`: seed 003's speed envelope, model and measured, and its
 //! arc-versus-line comparison (`eval::envelope`).
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use host_bench::eval::envelope::{self, ArcVsLine, Envelope};
-use host_bench::formats::atomic::write_atomically;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
     // Seed 003's wheels as the master drives them at power-on.
     let geometry = firmware_master::MasterConfig::DEFAULT.drive;
     let protocol::serial::DriveKind::Omni3 { d_um } = geometry.kind else {
-        anyhow::bail!("the master's power-on drive is not seed 003's three omni wheels");
+        anyhow::bail!("the master's power-on drive is not the three omni wheels of Yan (2013)");
     };
     // The picture is SVG: a name that says otherwise would mislead whatever opens it.
     if let Some(path) = out
@@ -26,13 +25,20 @@ pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
         );
     }
     if let Some(path) = &out {
-        host_bench::formats::atomic::check_output(path)
-            .with_context(|| format!("--out {}", path.display()))?;
+        // The PNG beside it too (the same picture, for what does not open SVG).
+        for p in [path.clone(), host_bench::eval::png::beside(path)] {
+            host_bench::formats::atomic::check_output(&p)
+                .with_context(|| format!("--out {}", path.display()))?;
+        }
     }
     let e = envelope::run(d_um as f64 * 1e-6, geometry.v_max_um_s as f64 * 1e-6)?;
     if let Some(path) = &out {
         write_svg(&e, path)?;
-        eprintln!("wrote {}", path.display());
+        eprintln!(
+            "wrote {} and {}",
+            path.display(),
+            host_bench::eval::png::beside(path).display()
+        );
     }
     if json {
         println!("{}", serde_json::to_string(&e)?);
@@ -40,9 +46,9 @@ pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
     }
     let a = &e.arc_vs_line;
     println!(
-        "three-omni drive, d = {} m, v_max = {} m/s (seed 003; \"measured\": driven flat out on \
-         the simulated robot, each wheel held at its limit by the master's speed loop on seed \
-         004's DC motors, timed from the ground truth)",
+        "three-omni drive, d = {} m, v_max = {} m/s (Yan 2013; \"measured\": driven flat out on \
+         the simulated robot, each wheel held at its limit by the master's speed loop on the DC \
+         motors of the carriage robot of Xu, Zhu and Hu 2015, timed from the ground truth)",
         e.wheel_distance_m, e.v_max_m_s
     );
     println!(
@@ -51,7 +57,7 @@ pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
         e.translate_max_ratio, e.translate_max_ratio_model, e.translate_min_ratio
     );
     println!(
-        "every wheel at v_max (seed 003 table 1, 6 cases): {:.4} x v_max measured (model 4/3 = \
+        "every wheel at v_max (Yan 2013, table 1, 6 cases): {:.4} x v_max measured (model 4/3 = \
          {:.4}), spinning at {:.3} rad/s",
         e.spin_translate_max_ratio,
         e.spin_translate_max_ratio_model,
@@ -62,7 +68,7 @@ pub fn run_envelope(json: bool, out: Option<PathBuf>) -> Result<()> {
     );
     println!(
         "arc (radius 4d = {:.2} m, with spin) beats the line below a central angle of {:.3} rad, \
-         a chord of {:.2} d (seed 003 prints {:.3} rad and {:.3} d; its own equations give the \
+         a chord of {:.2} d (Yan 2013 prints {:.3} rad and {:.3} d; its own equations give the \
          chord here)",
         a.arc_radius_m,
         a.crossover_angle_rad,
@@ -112,8 +118,7 @@ fn write_svg(e: &Envelope, path: &std::path::Path) -> Result<()> {
         draw_arc_vs_line(&e.arc_vs_line, &right)?;
         root.present()?;
     }
-    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
-        .with_context(|| format!("--out {}", path.display()))
+    host_bench::eval::png::write(path, &text).with_context(|| format!("--out {}", path.display()))
 }
 
 /// Translation speed against direction (model line, measured points) and the speed reached
@@ -226,13 +231,21 @@ fn draw_arc_vs_line(a: &ArcVsLine, area: &Area) -> Result<()> {
             "line"
         };
         chart.draw_series(std::iter::once(Circle::new(r.b, 4, BLACK.filled())))?;
+        // A goal right of the middle is labelled above and on its left, one left of it below
+        // and on its right: no label runs off the plot or over its neighbour's.
+        let (x, pos) = if r.b.0 > mid.0 {
+            (r.b.0 - span * 0.01, Pos::new(HPos::Right, VPos::Bottom))
+        } else {
+            (r.b.0 + span * 0.01, Pos::new(HPos::Left, VPos::Top))
+        };
+        let style = TextStyle::from(("sans-serif", 13).into_font()).pos(pos);
         chart.draw_series(std::iter::once(Text::new(
             format!(
                 "{:.2} rad: arc {:.2} s, line {:.2} s ({winner})",
                 g.angle_rad, g.arc_measured_s, g.line_measured_s
             ),
-            (r.b.0 + span * 0.01, r.b.1),
-            ("sans-serif", 13),
+            (x, r.b.1),
+            style,
         )))?;
     }
     chart

@@ -86,7 +86,7 @@ pub fn run_generate(a: GenerateArgs) -> Result<()> {
                 traj::Drive::Holonomic => "omni robots",
             };
             println!(
-                "{:<24} {:<18} {:<11} {}",
+                "{:<24} {:<28} {:<11} {}",
                 t.name, t.paper, drive, t.description
             );
         }

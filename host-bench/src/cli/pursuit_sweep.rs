@@ -1,12 +1,10 @@
 //! `host-bench pursuit-sweep`: seed 004's pursuit period, emulated and from the paper's own
 //! equations (`eval::pursuit_sweep`), as a table and a plot.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use host_bench::eval::pursuit_sweep::{run, Sweep, PERIODS_S};
-use host_bench::formats::atomic::write_atomically;
 use plotters::prelude::*;
 
 /// The periods whose paths the plot draws.
@@ -25,13 +23,20 @@ pub fn run_pursuit_sweep(json: bool, duration: f64, out: Option<PathBuf>) -> Res
             "--out {}: the plot is drawn as SVG; name a .svg file",
             path.display()
         );
-        host_bench::formats::atomic::check_output(path)
-            .with_context(|| format!("--out {}", path.display()))?;
+        // The PNG beside it too (the same picture, for what does not open SVG).
+        for p in [path.clone(), host_bench::eval::png::beside(path)] {
+            host_bench::formats::atomic::check_output(&p)
+                .with_context(|| format!("--out {}", path.display()))?;
+        }
     }
     let sweep = run(&PERIODS_S, duration)?;
     if let Some(path) = &out {
         write_svg(&sweep, path)?;
-        eprintln!("wrote {}", path.display());
+        eprintln!(
+            "wrote {} and {}",
+            path.display(),
+            host_bench::eval::png::beside(path).display()
+        );
     }
     if json {
         println!("{}", serde_json::json!({ "rows": sweep.rows }));
@@ -40,8 +45,8 @@ pub fn run_pursuit_sweep(json: bool, duration: f64, out: Option<PathBuf>) -> Res
     println!(
         "seed004-pursuit, {duration} s. While the target moves: jitter = turning of the \
          direction of travel (rad/s), tracking = RMS distance to the target. Once it stopped \
-         (+1 s): distance RMS / max and turning. paper: seed 004's equations (9)-(14) for the \
-         same period (a point stepping V_t·tau, no dynamics)."
+         (+1 s): distance RMS / max and turning. paper: the equations (9)-(14) of Xu, Zhu and \
+         Hu (2015) for the same period (a point stepping V_t·tau, no dynamics)."
     );
     println!(
         "{:>5}  {:>7}  {:>11}  {:>11}  {:>11}  {:>8}  {:>7} | {:>7}  {:>11}  {:>11}  law",
@@ -116,13 +121,15 @@ fn write_svg(sweep: &Sweep, path: &Path) -> Result<()> {
         )?;
         root.present()?;
     }
-    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
-        .with_context(|| format!("--out {}", path.display()))
+    host_bench::eval::png::write(path, &text).with_context(|| format!("--out {}", path.display()))
 }
 
 fn draw_paths(sweep: &Sweep, area: &DrawingArea<SVGBackend, plotters::coord::Shift>) -> Result<()> {
     let mut chart = ChartBuilder::on(area)
-        .caption("seed 004 pursuit: paths (m)", ("sans-serif", 20))
+        .caption(
+            "Euler pursuit (Xu, Zhu and Hu 2015): paths (m)",
+            ("sans-serif", 20),
+        )
         .margin(15)
         .x_label_area_size(35)
         .y_label_area_size(45)

@@ -284,7 +284,8 @@ pub struct RecordArgs {
     /// Record every edge with its time stamp, or the counts at the update rate.
     #[arg(long, default_value = "timestamps", value_parser = ["timestamps", "counts"])]
     pub sensor: String,
-    /// Load this robot into the slave first [default: the slave's power-on seed 004 robot].
+    /// Load this robot into the slave first [default: the slave's power-on robot, the carriage
+    /// robot of Xu, Zhu and Hu (2015)].
     #[arg(long, value_name = "FILE")]
     pub robot: Option<PathBuf>,
     /// Print the outcome as one JSON object.
@@ -389,8 +390,8 @@ pub struct VirtualBoardArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// The simulated robot (docs/robot-format.md; two encoders, as the slave board reads),
-    /// loaded in the slave as if `play`/`record --robot` had sent it [default: seed 004, the
-    /// slave's power-on robot].
+    /// loaded in the slave as if `play`/`record --robot` had sent it [default: the carriage
+    /// robot of Xu, Zhu and Hu (2015), the slave's power-on robot].
     #[arg(long, value_name = "FILE")]
     pub robot: Option<std::path::PathBuf>,
     /// Fault injection: answer the handshake with this schema fingerprint (hex) instead of
@@ -491,8 +492,8 @@ pub struct VirtualBoardArgs {
     #[arg(long, value_name = "ACT[@N]")]
     pub misbehave: Option<String>,
     /// How fast the robot drives round its course, in m/s (at most 1). By default the speed
-    /// at which a 115 200-baud link carries every time-stamped edge: 0.05 m/s for seed
-    /// 004's counts, scaled to a robot file's finer or coarser ones.
+    /// at which a 115 200-baud link carries every time-stamped edge: 0.05 m/s for the
+    /// carriage robot's counts, scaled to a robot file's finer or coarser ones.
     #[arg(long, value_name = "M_S")]
     pub course_speed: Option<f64>,
     /// The robot as it really is, when it is not as the slave is told (--robot, or its
@@ -502,9 +503,9 @@ pub struct VirtualBoardArgs {
     #[arg(long, value_name = "FILE")]
     pub true_robot: Option<PathBuf>,
     /// The master drives the robot: its motor outputs turn the wheels of the robot's drive
-    /// (--true-robot's, else --robot's, else seed 004's), as on a robot on the floor, and the
-    /// robot stands still until the host drives it (`calibrate --drive-squares` does; the
-    /// host sends the drive first). Without it the board pushes the robot round its own
+    /// (--true-robot's, else --robot's, else the carriage robot's), as on a robot on the floor,
+    /// and the robot stands still until the host drives it (`calibrate --drive-squares` does;
+    /// the host sends the drive first). Without it the board pushes the robot round its own
     /// square course.
     #[arg(long)]
     pub master_drives: bool,
@@ -541,7 +542,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         }
         None => (
             robot_math::odometry::Layout::SEED_004,
-            "seed 004".to_string(),
+            "seed004, the carriage robot of Xu, Zhu and Hu 2015".to_string(),
         ),
     };
     let mut opts = virtual_board::Options {
@@ -666,7 +667,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             "{}: the virtual board cannot simulate robot {robot_name}: {e}",
             a.robot
                 .as_deref()
-                .unwrap_or(std::path::Path::new("seed 004"))
+                .unwrap_or(std::path::Path::new("the slave's power-on robot"))
                 .display()
         )
     })?;

@@ -188,7 +188,8 @@ pub(crate) struct WheelDriver {
 
 impl WheelDriver {
     pub fn new(omni: &Omni3, start: Pose2, wheels: [f64; 3]) -> Result<Self> {
-        let drive = DriveSetup::from_geometry(&SEED_004_DRIVE).context("seed 004's drive")?;
+        let drive = DriveSetup::from_geometry(&SEED_004_DRIVE)
+            .context("the drive of the carriage robot (Xu, Zhu and Hu 2015)")?;
         let cfg = PlantConfig {
             drive: robot_math::drive::DriveKinematics::Omni3(*omni),
             motor: DcMotor::SEED_004,
@@ -202,7 +203,7 @@ impl WheelDriver {
         };
         let per_count = drive
             .metres_per_motor_count
-            .context("seed 004's motors have encoders")?;
+            .context("the carriage robot's motors (Xu, Zhu and Hu 2015) have encoders")?;
         let plant = Plant::new(cfg, start, 0.0, [0.0; 2]);
         let counts = plant.motor_counts();
         Ok(WheelDriver {

@@ -5,6 +5,7 @@ pub mod accuracy;
 pub mod arc_vs_line;
 pub mod board_poses;
 pub mod envelope;
+pub mod png;
 pub mod pursuit_sweep;
 pub mod replay;
 pub mod replay_checks;

@@ -105,7 +105,7 @@ pub fn run(periods_s: &[f64], duration_s: f64) -> Result<Sweep> {
         rows.push(Row {
             tau_s: tau,
             law: if tau > 0.0 {
-                "seed 004 Euler pursuit"
+                "Euler pursuit (Xu, Zhu and Hu 2015)"
             } else {
                 "ours: every 10 ms, slowing near the target, holding at it"
             },

@@ -222,9 +222,9 @@ fn lut_origin(stream: &TickStream, robot: &Robot) -> Result<(u32, u32)> {
     let square = u32::MAX as f64 * 1e-8;
     if span > square {
         bail!(
-            "seed 001's `lut` keeps positions in 32-bit units of 10 nm, a {square:.1} m square; \
-             this run needs {span:.1} m (its truth's extent, plus {margin:.1} m either side for \
-             the robot's reach)"
+            "`lut` (Batbayar and Zoljargal 2013) keeps positions in 32-bit units of 10 nm, a \
+             {square:.1} m square; this run needs {span:.1} m (its truth's extent, plus \
+             {margin:.1} m either side for the robot's reach)"
         );
     }
     let lsb = |m: f64| ((margin - m) * 1e8).clamp(0.0, u32::MAX as f64) as u32;

@@ -11,7 +11,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::formats::atomic::{write_atomically, Staged};
+use crate::formats::atomic::Staged;
 use crate::sim::emulator::{self, LogRow, Run, Scenario, Summary};
 
 /// The short summary `emulate` prints.
@@ -217,15 +217,21 @@ pub fn emulate_into(
         dir.join("path.svg"),
         dir.join("summary.json"),
     );
+    let png_path = crate::eval::png::beside(&svg_path);
     let inputs: Vec<(&str, &Path)> = (scenario.source_files.iter())
         .map(|(w, p)| (*w, p.as_path()))
         .collect();
     crate::formats::atomic::refuse_inputs(
         &format!("--out {}", dir.display()),
-        &[csv_path.clone(), svg_path.clone(), json_path.clone()],
+        &[
+            csv_path.clone(),
+            svg_path.clone(),
+            png_path.clone(),
+            json_path.clone(),
+        ],
         &inputs,
     )?;
-    for p in [&csv_path, &svg_path, &json_path] {
+    for p in [&csv_path, &svg_path, &png_path, &json_path] {
         crate::formats::atomic::check_output(p)
             .with_context(|| format!("--out {}", dir.display()))?;
     }
@@ -236,12 +242,12 @@ pub fn emulate_into(
         &run,
         SVGBackend::with_string(&mut text, (800, 1100)).into_drawing_area(),
     )?;
-    staged.write(&svg_path, |file| Ok(file.write_all(text.as_bytes())?))?;
+    crate::eval::png::stage(&mut staged, &svg_path, &text)?;
     Ok((
         run,
         EmulateFiles {
             staged,
-            paths: vec![csv_path, svg_path],
+            paths: vec![csv_path, svg_path, png_path],
             json_path,
             dir: out,
         },
@@ -340,15 +346,6 @@ impl<T> Thinned<T> {
     }
 }
 
-/// Draws an 800 x 1100 SVG with `draw`, then writes it to `path` atomically.
-fn write_svg(
-    path: &Path,
-    draw: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
-) -> Result<()> {
-    let text = svg(draw)?;
-    write_atomically(path, |file| Ok(file.write_all(text.as_bytes())?))
-}
-
 /// An 800 x 1100 SVG drawn by `draw`, as text.
 fn svg(draw: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>) -> Result<String> {
     let mut text = String::new();
@@ -389,13 +386,44 @@ fn draw_run(run: &Run, root: DrawingArea<SVGBackend<'_>, Shift>) -> Result<()> {
         .x_desc("x (m)")
         .y_desc("y (m)")
         .draw()?;
-    let series: [Series; 4] = [
+    // The truth wide and pale underneath, the estimates thin over it: an estimate within a
+    // millimetre of the truth shows as a line inside the wide one, not hidden under it.
+    chart
+        .draw_series(LineSeries::new(
+            truth.iter().copied(),
+            RGBColor(0, 0, 0).mix(0.25).stroke_width(9),
+        ))?
+        .label("ground truth (wide)")
+        .legend(|(x, y)| {
+            PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.25).stroke_width(6))
+        });
+    for (name, data, color) in [
         ("target", &target, RGBColor(150, 150, 150)),
-        ("ground truth", &truth, BLACK),
         ("slave odometry", &slave, SLAVE_COLOR),
-        ("master estimate", &master, MASTER_COLOR),
-    ];
-    draw_lines(&mut chart, &series, 2, SeriesLabelPosition::LowerRight)?;
+    ] {
+        chart
+            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))?
+            .label(name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    // Dashed, so the slave's line shows through the master's where they coincide.
+    chart
+        .draw_series(DashedLineSeries::new(
+            master.iter().copied(),
+            6,
+            4,
+            MASTER_COLOR.stroke_width(1),
+        ))?
+        .label("master estimate (dashed)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], MASTER_COLOR.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()?;
     draw_error_panel(&bottom, log)?;
     root.present()?;
     Ok(())
@@ -405,7 +433,9 @@ const SLAVE_COLOR: RGBColor = RGBColor(220, 40, 40);
 const MASTER_COLOR: RGBColor = RGBColor(40, 90, 220);
 
 /// Position error against ground truth over time, in millimetres: at the paths' scale the
-/// estimates sit on the truth, so the error needs its own axis to be seen at all.
+/// estimates sit on the truth, so the error needs its own axis to be seen at all. A log axis:
+/// a start transient of centimetres (the master's estimate before the host sets the pose)
+/// would otherwise flatten a run's hundredths of a millimetre onto zero.
 fn draw_error_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
     log: &[LogRow],
@@ -413,8 +443,13 @@ fn draw_error_panel<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
+    // 0.1 µm: an error below reads as the floor.
+    let floor = 1e-4;
     let err = |x: Option<f64>, y: Option<f64>, r: &LogRow| -> Option<(f64, f64)> {
-        Some((r.t_s, (x? - r.true_x_m).hypot(y? - r.true_y_m) * 1e3))
+        Some((
+            r.t_s,
+            ((x? - r.true_x_m).hypot(y? - r.true_y_m) * 1e3).max(floor),
+        ))
     };
     let slave: Vec<_> = log
         .iter()
@@ -429,24 +464,35 @@ where
         .iter()
         .chain(&master)
         .map(|p| p.1)
-        .fold(0.0f64, f64::max)
-        .max(1e-3)
-        * 1.1;
+        .fold(1e-2f64, f64::max)
+        * 3.0;
     let mut chart = ChartBuilder::on(area)
         .margin(15)
         .x_label_area_size(40)
-        .y_label_area_size(50)
-        .build_cartesian_2d(0.0..t_end, 0.0..e_max)?;
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..t_end, (floor..e_max).log_scale())?;
     chart
         .configure_mesh()
         .x_desc("time (s)")
-        .y_desc("position error (mm)")
+        .y_desc("position error (mm, log)")
         .draw()?;
-    let series: [Series; 2] = [
+    for (name, data, color) in [
         ("slave odometry", &slave, SLAVE_COLOR),
         ("master estimate", &master, MASTER_COLOR),
-    ];
-    draw_lines(&mut chart, &series, 1, SeriesLabelPosition::UpperLeft)?;
+    ] {
+        chart
+            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))?
+            .label(name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
     Ok(())
 }
 
@@ -512,18 +558,9 @@ where
     Ok(())
 }
 
-/// One SVG for an accuracy case: the true path and each method's path on top, and each
+/// One picture for an accuracy case: the true path and each method's path on top, and each
 /// method's position error against distance travelled below (log scale: the methods differ
-/// by orders of magnitude).
-pub fn write_case_svg(
-    path: &Path,
-    title: &str,
-    scores: &[crate::eval::replay::Score],
-) -> Result<()> {
-    write_svg(path, |root| draw_case(root, title, scores))
-}
-
-/// [`write_case_svg`]'s picture, as text (for files written together, `atomic::Staged`).
+/// by orders of magnitude). As SVG text, for files written together (`atomic::Staged`).
 pub fn case_svg(title: &str, scores: &[crate::eval::replay::Score]) -> Result<String> {
     svg(|root| draw_case(root, title, scores))
 }
@@ -633,7 +670,7 @@ fn draw_case(
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
+        .position(SeriesLabelPosition::LowerRight)
         .draw()?;
     root.present()?;
     Ok(())

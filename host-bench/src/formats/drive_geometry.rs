@@ -37,7 +37,7 @@ impl Robot {
                 });
                 if !same {
                     bail!(
-                        "robot {name}: three drive wheels must be seed 003's layout (at 0, 120 and \
+                        "robot {name}: three drive wheels must be the layout of Yan 2013 (at 0, 120 and \
                          240 degrees round the reference point, rolling counter-clockwise)"
                     );
                 }

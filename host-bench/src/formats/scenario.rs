@@ -214,7 +214,9 @@ impl TomlFile<'_> {
                 return Err(anyhow!(self.at(
                     t.span(),
                     "trajectory",
-                    "give either [target] (seed 004's pursuit) or [trajectory] (seed 002's tracking), not both",
+                    "give either [target] (the pursuit of Xu, Zhu and Hu 2015) or [trajectory] \
+                     (the tracking of Dehghan Banadaki, Nili Ahmadabadi and Moaveni Sabet 2005), \
+                     not both",
                 )))
             }
             (None, None) => {

@@ -120,16 +120,17 @@ impl fmt::Display for Unsupported {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Unsupported::TimingNeedsTicks => f.write_str(
-                "`timing` (seed 000) needs every tick's time stamp; it cannot run on sampled counts",
+                "`timing` (the tick-timing paper) needs every tick's time stamp; it cannot run on \
+                 sampled counts",
             ),
             Unsupported::LutLayout(e) => write!(
                 f,
-                "`lut` (seed 001) needs a differential drive, or wheels that all turn the body \
-                 by the same angle per tick ({e:?})"
+                "`lut` (Batbayar and Zoljargal 2013) needs a differential drive, or wheels that \
+                 all turn the body by the same angle per tick ({e:?})"
             ),
             Unsupported::LutTablesNotBuilt => f.write_str(
-                "`lut` (seed 001) on this layout needs per-wheel tables, left out of this build \
-                 (robot-math feature `lut-n`)",
+                "`lut` (Batbayar and Zoljargal 2013) on this layout needs per-wheel tables, left \
+                 out of this build (robot-math feature `lut-n`)",
             ),
             Unsupported::Geometry(e) => {
                 write!(f, "the encoders cannot determine the body's motion: {e:?}")

@@ -211,7 +211,9 @@ impl TomlFile<'_> {
                     return Err(self.at(
                         t.get_ref().x_m.span(),
                         "tracked_point.x_m",
-                        "must not be 0: a point on the axle cannot move sideways (seed 002 needs l != 0)",
+                        "must not be 0: a point on the axle cannot move sideways (the tracking \
+                         of Dehghan Banadaki, Nili Ahmadabadi and Moaveni Sabet 2005 needs \
+                         l != 0)",
                     ));
                 }
                 Some(x)

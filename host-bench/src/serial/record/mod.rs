@@ -144,8 +144,8 @@ pub fn record_moving(
             );
             if info.robot != seed {
                 bail!(
-                    "the slave runs robot {:08x}, not its power-on seed 004 ({seed:08x}): name \
-                     the robot file with --robot FILE",
+                    "the slave runs robot {:08x}, not its power-on robot, the carriage robot of \
+                     Xu, Zhu and Hu 2015 ({seed:08x}): name the robot file with --robot FILE",
                     info.robot
                 );
             }

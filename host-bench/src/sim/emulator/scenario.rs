@@ -96,14 +96,15 @@ impl Scenario {
     pub fn seed004_pursuit() -> Self {
         Scenario {
             name: "seed004-pursuit".into(),
-            description: "seed 004: target (0,3) m -> (2.5,3) m at 0.35 m/s, robot at 0.6 m/s from the origin".into(),
+            description: "Xu, Zhu and Hu (2015): target (0,3) m -> (2.5,3) m at 0.35 m/s, robot at 0.6 m/s from the origin".into(),
             robot: POWER_ON_ROBOT.into(),
             drive: firmware_master::drive_setup::SEED_004_DRIVE,
             motor: DcMotor::SEED_004,
             layout: Layout::SEED_004,
             start: (0.0, 0.0, 0.0),
             // The carriage trails the first direction of travel (+y), with the swivel at the
-            // centre of an absolute-encoder code (see README, "Robot").
+            // centre of an absolute-encoder code (see docs/design.md, "The simulated robot, and
+            // what we assumed").
             start_swivel: std::f64::consts::FRAC_PI_2,
             motion: Motion::Pursue {
                 target_from: (0.0, 3.0),

@@ -1,4 +1,6 @@
-//! Where each incremental encoder stands inside its count when the robot powers on (issue 8).
+//! Where each incremental encoder stands inside its count when the robot powers on: taking every
+//! encoder to start on an edge biased the odometry by up to a count per wheel (docs/odometry.md,
+//! "Where a wheel starts inside its count").
 //!
 //! A real encoder powers on anywhere inside a count, not on its edge. Encoder `i` starts with
 //! the rolled distance `φ_i · step_i`, φ_i in `[0, 1)`, and counts from there: its count at time

@@ -11,59 +11,59 @@ const CATALOGUE: &[Named] = &[
     Named {
         name: "seed000-line",
         description: "straight line 80 cm along +x, heading 0",
-        paper: "seed 000",
+        paper: "tick-timing paper",
         drive: Drive::Differential,
     },
     Named {
         name: "seed000-bezier-0deg",
         description: "one cubic Bezier curve, 80 cm, heading constant 0",
-        paper: "seed 000",
+        paper: "tick-timing paper",
         drive: Drive::Holonomic,
     },
     Named {
         name: "seed000-bezier-90deg",
         description: "one cubic Bezier curve, 80 cm, heading turning 90 deg linearly with distance",
-        paper: "seed 000",
+        paper: "tick-timing paper",
         drive: Drive::Holonomic,
     },
     Named {
         name: "seed000-bezier-180deg",
         description:
             "one cubic Bezier curve, 80 cm, heading turning 180 deg linearly with distance",
-        paper: "seed 000",
+        paper: "tick-timing paper",
         drive: Drive::Holonomic,
     },
     Named {
         name: "seed000-two-beziers",
         description:
             "two cubic Bezier curves joined with a common tangent (an S), 80 cm, heading 0",
-        paper: "seed 000",
+        paper: "tick-timing paper",
         drive: Drive::Holonomic,
     },
     Named {
         name: "seed001-figure-eight",
         description: "figure-eight (lemniscate of Gerono), 284 cm, heading along the path",
-        paper: "seed 001",
+        paper: "Batbayar and Zoljargal 2013",
         drive: Drive::Differential,
     },
     Named {
         name: "seed001-straight-40m",
         description: "straight line 40 m along +x",
-        paper: "seed 001",
+        paper: "Batbayar and Zoljargal 2013",
         drive: Drive::Differential,
     },
     Named {
         name: "seed001-curve",
         description:
             "a left-hand curve (cubic Bezier turning 90 deg), 280 cm, heading along the path",
-        paper: "seed 001",
+        paper: "Batbayar and Zoljargal 2013",
         drive: Drive::Differential,
     },
     Named {
         name: "seed002-square",
         description:
             "1 m square counter-clockwise, heading kept at 0 (sideways sides), stop at each corner",
-        paper: "seed 002",
+        paper: "Dehghan Banadaki et al. 2005",
         drive: Drive::Holonomic,
     },
     Named {
@@ -71,20 +71,20 @@ const CATALOGUE: &[Named] = &[
         description: "1 m square counter-clockwise at a constant 0.4 m/s, heading kept at 0: \
                       the velocity steps at the start, at each corner and at the end (0.5 s at rest \
                       either side)",
-        paper: "seed 002",
+        paper: "Dehghan Banadaki et al. 2005",
         drive: Drive::Holonomic,
     },
     Named {
         name: "seed002-diagonal",
         description: "diagonal of a 1 m square, to (1, 1) m, heading kept at 0",
-        paper: "seed 002",
+        paper: "Dehghan Banadaki et al. 2005",
         drive: Drive::Holonomic,
     },
     Named {
         name: "seed002-circle",
         description:
             "one counter-clockwise lap of a circle of radius 0.5 m, heading along the path",
-        paper: "seed 002",
+        paper: "Dehghan Banadaki et al. 2005",
         drive: Drive::Differential,
     },
     Named {

@@ -151,7 +151,7 @@ pub enum Drive {
 pub struct Named {
     pub name: &'static str,
     pub description: &'static str,
-    /// Where it comes from, e.g. "seed 000"; "ours" for the trajectories no paper has.
+    /// Where it comes from, e.g. "tick-timing paper"; "ours" for the trajectories no paper has.
     pub paper: &'static str,
     pub drive: Drive,
 }

@@ -1,5 +1,8 @@
 //! Motions made of segments of constant body twist, changing abruptly from one segment to the
-//! next (issue 8: the seed curves all start and stop smoothly at rest, at t = 0 and at the end).
+//! next: the papers' curves all start and stop smoothly at rest, at t = 0 and at the end, so
+//! they never show what an abrupt start or change does to the odometry (to placing each wheel
+//! inside its count at power-on, for one: docs/odometry.md, "Where a wheel starts inside its
+//! count").
 //!
 //! Over a segment the twist is `ξ·σ(τ)` for a fixed twist ξ and a scalar shape σ of the time τ
 //! into the segment: 1 (constant), or a smoothstep ramp from 0 to 1 (a smooth start). A twist of
