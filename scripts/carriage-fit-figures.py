@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""`calibrate --method fit` on seed 004's swivel carriage, over seeds: the robot as built off its
-robot file (each measuring wheel's diameter off by up to 2 %, the two wheels up to 2 mm
+"""`calibrate --method fit` on the swivel carriage of Xu, Zhu and Hu (2015)'s robot
+(robots/seed004.toml), over seeds: the robot as built off its robot file (each measuring
+wheel's diameter off by up to 2 %, the two wheels up to 2 mm
 further apart or closer), runs written by `host-bench generate` with every encoder powered on
 at a random point in its count and the carriage swung a random angle (up to 90 degrees either
 way) from straight behind at the start, as the last motion would leave it, and its edges

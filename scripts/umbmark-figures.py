@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""UMBmark's figures over seeds, as the README and docs/calibration.md quote them: a robot whose
+"""UMBmark's figures over seeds, as docs/calibration.md ("Figures") quotes them: a robot whose
 geometry is off its robot file (the right wheel 1 % larger than the left, E_d = 1.01, and the
 wheels 3 % further apart, E_b = 1.03), its squares driven both ways, the end poses measured
 with a person's tape-measure noise, `host-bench calibrate --method umbmark`, and the squares
