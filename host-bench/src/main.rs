@@ -381,13 +381,29 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if let Some(n) = sweep {
                 return cli::sweep::run_sweep(&scenario, &opts, n, json);
             }
-            if !(live_speed > 0.0 && live_speed.is_finite()) {
-                anyhow::bail!("--live-speed {live_speed}: a factor above 0");
+            if !host_bench::viewer::LIVE_SPEEDS.contains(&live_speed) {
+                let r = host_bench::viewer::LIVE_SPEEDS;
+                anyhow::bail!(
+                    "--live-speed {live_speed}: a factor of real time, {} to {}",
+                    r.start(),
+                    r.end()
+                );
             }
+            // The MCAP file may not be one of the run's inputs or --out files.
+            let mut files: Vec<PathBuf> = (scenario.source_files.iter())
+                .map(|(_, p)| p.clone())
+                .collect();
+            if let Some(dir) = &out {
+                for f in ["run.csv", "path.svg", "path.png", "summary.json"] {
+                    files.push(dir.join(f));
+                }
+            }
+            let file_refs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
             let mut outputs = host_bench::viewer::Outputs::open(
                 &view,
                 host_bench::viewer::topics::emulate_channels(false),
                 "host-bench emulate",
+                &file_refs,
             )?;
             let pacer = outputs
                 .is_live()
@@ -423,19 +439,28 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 run.summary.fault_check = Some(check);
             }
             let nothing = emulator::nothing_scored(&run.summary);
-            if let (Some(files), None) = (files, &nothing) {
-                let written = files.commit(&run.summary)?;
-                if !json {
-                    for p in written {
-                        eprintln!("wrote {}", p.display());
+            if nothing.is_none() {
+                // The MCAP file first: should the --out files then fail to go in place, it
+                // goes again, so the run leaves all of its files or none.
+                let mcap = outputs.finish()?;
+                if let Some(files) = files {
+                    match files.commit(&run.summary) {
+                        Ok(written) if !json => {
+                            for p in written {
+                                eprintln!("wrote {}", p.display());
+                            }
+                        }
+                        Ok(_) => {}
+                        Err(e) => {
+                            if let Some(p) = &mcap {
+                                let _ = std::fs::remove_file(p);
+                            }
+                            return Err(e);
+                        }
                     }
                 }
-            }
-            if nothing.is_none() {
-                if let Some(p) = outputs.finish()? {
-                    if !json {
-                        eprintln!("wrote {}", p.display());
-                    }
+                if let Some(p) = mcap.filter(|_| !json) {
+                    eprintln!("wrote {}", p.display());
                 }
             }
             if json {

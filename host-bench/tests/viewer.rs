@@ -198,6 +198,14 @@ fn play_and_replay_write_mcap_files_the_viewers_read() {
     assert_eq!(count(&ch, "/board/error"), count(&ch, "/truth/pose"));
     assert_eq!(count(&ch, "/link"), count(&ch, "/board/pose"));
     assert_eq!(ch["/board/pose"].schema, "foxglove.PoseInFrame");
+    // Every message is logged at its own time.
+    for topic in ["/host/pose", "/board/pose", "/truth/pose"] {
+        for (t, m) in &ch[topic].messages {
+            let stamp = m["timestamp"]["sec"].as_u64().unwrap() * 1_000_000_000
+                + m["timestamp"]["nsec"].as_u64().unwrap();
+            assert_eq!(*t, stamp, "{topic}");
+        }
+    }
     // The board's reported poses are the host's at the same updates.
     let host: BTreeMap<u64, &serde_json::Value> = ch["/host/pose"]
         .messages
@@ -207,6 +215,26 @@ fn play_and_replay_write_mcap_files_the_viewers_read() {
     for (t, m) in &ch["/board/pose"].messages {
         assert_eq!(m["pose"], host[t]["pose"], "at {t} ns");
     }
+
+    // The MCAP file may not be the stream played: refused before the board is asked, the
+    // stream untouched.
+    let copy = dir.path().join("circle.csv");
+    std::fs::copy(circle(), &copy).unwrap();
+    let out = Command::new(BIN)
+        .args(["play", "--port", &board.port, "--robot"])
+        .arg(circle().with_file_name("diff-drive.toml"))
+        .arg("--ticks")
+        .arg(&copy)
+        .arg("--mcap")
+        .arg(&copy)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("that is"), "{err}");
+    assert_eq!(
+        std::fs::read(&copy).unwrap(),
+        std::fs::read(circle()).unwrap()
+    );
 
     let file = dir.path().join("replay.mcap");
     let out = Command::new(BIN)
@@ -247,8 +275,8 @@ fn start_live(args: &[&str]) -> (Child, u16) {
         .and_then(|s| s.split(|c: char| !c.is_ascii_digit()).next())
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("no address in {first:?}"));
-    // The rest of stderr is drained, so the child never blocks on it.
-    std::thread::spawn(move || lines.for_each(drop));
+    // The rest of stderr is passed on (shown with a failing test), so the child never blocks.
+    std::thread::spawn(move || lines.map_while(Result::ok).for_each(|l| eprintln!("{l}")));
     (child, port)
 }
 
@@ -320,10 +348,27 @@ fn the_live_view_serves_poses_in_order_under_both_subprotocols() {
         Err(tungstenite::Error::Http(r)) => assert_eq!(r.status(), 400),
         other => panic!("not refused: {:?}", other.map(|(_, r)| r.status())),
     }
+    // A client that floods a subscribe of a megabyte and never reads what it is sent: it is
+    // let go, and holds up neither the run nor the other clients.
+    let (mut lazy, _) = ws_connect(port, "foxglove.websocket.v1").unwrap();
+    let flood: Vec<_> = (0..40_000)
+        .map(|i| serde_json::json!({"id": i, "channelId": 0}))
+        .collect();
+    let _ = lazy.send(Message::text(
+        serde_json::json!({"op": "subscribe", "subscriptions": flood}).to_string(),
+    ));
     let mut poses = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(20);
-    while poses.len() < 200 && Instant::now() < deadline {
-        match ws.read().unwrap() {
+    while poses
+        .last()
+        .is_none_or(|p: &(u64, f64)| p.0 < 1_990_000_000)
+        && Instant::now() < deadline
+    {
+        // Until the run's last pose (at 1.991 s), or the server going away.
+        let Ok(m) = ws.read() else {
+            break;
+        };
+        match m {
             Message::Binary(b) => {
                 assert_eq!(b[0], 1, "message data");
                 assert_eq!(u32::from_le_bytes(b[1..5].try_into().unwrap()), 7);
@@ -334,24 +379,53 @@ fn the_live_view_serves_poses_in_order_under_both_subprotocols() {
             _ => continue,
         }
     }
+    // The page's history: every channel's messages so far, in time order.
+    let history: serde_json::Value =
+        serde_json::from_str(&http_get(port, "/history").unwrap()).unwrap();
     let _ = child.kill();
     let _ = child.wait();
-    assert_eq!(poses.len(), 200, "a pose every 10 ms of the 2 s run");
+    drop(lazy);
+    let kept = history["messages"].as_array().unwrap();
+    let times: Vec<u64> = kept.iter().map(|m| m[1].as_u64().unwrap()).collect();
+    assert!(
+        times.windows(2).all(|w| w[0] <= w[1]),
+        "history out of order"
+    );
+    let slave_id = slave["id"].as_u64().unwrap();
+    let kept_slave = kept
+        .iter()
+        .filter(|m| m[0].as_u64() == Some(slave_id))
+        .count();
+    assert_eq!(
+        kept_slave, 200,
+        "the history keeps every /slave/pose of the run"
+    );
+    // Live from the subscription on (the run's first rows may come before it), in order, none
+    // lost, to the run's last.
+    assert!(poses.len() >= 190, "{} poses", poses.len());
     assert!(
         poses.windows(2).all(|w| w[1].0 == w[0].0 + 10_000_000),
         "in order, none lost"
     );
-    assert!((poses[199].1 - poses[0].1).abs() > 0.01, "the robot moved");
+    assert_eq!(
+        poses.last().unwrap().0,
+        1_991_000_000,
+        "to the end of the run"
+    );
+    assert!(
+        (poses.last().unwrap().1 - poses[0].1).abs() > 0.01,
+        "the robot moved"
+    );
 }
 
-/// A small HTTP GET, for Chromium's DevTools endpoint: the body, by its Content-Length (the
-/// endpoint keeps the connection open).
+/// A small HTTP GET: the body, by its Content-Length (Chromium's DevTools endpoint keeps the
+/// connection open), else to the end (the live server's `/history` closes it).
 fn http_get(port: u16, path: &str) -> std::io::Result<String> {
     let s = TcpStream::connect(("127.0.0.1", port))?;
     s.set_read_timeout(Some(Duration::from_secs(5)))?;
     write!(&s, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n")?;
     let mut r = BufReader::new(s);
-    let mut len = 0;
+    let mut len = None;
     loop {
         let mut line = String::new();
         r.read_line(&mut line)?;
@@ -360,11 +434,19 @@ fn http_get(port: u16, path: &str) -> std::io::Result<String> {
             break;
         }
         if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
-            len = v.trim().parse().unwrap_or(0);
+            len = v.trim().parse().ok();
         }
     }
-    let mut body = vec![0; len];
-    r.read_exact(&mut body)?;
+    let mut body = Vec::new();
+    match len {
+        Some(n) => {
+            body.resize(n, 0);
+            r.read_exact(&mut body)?;
+        }
+        None => {
+            r.read_to_end(&mut body)?;
+        }
+    }
     Ok(String::from_utf8_lossy(&body).into_owned())
 }
 

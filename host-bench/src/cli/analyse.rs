@@ -172,10 +172,17 @@ pub fn run_replay(
         }
         None => None,
     };
+    let mut files = vec![ticks.as_path(), robot_path.as_path()];
+    files.extend(board_file.as_deref());
+    let track_files: Vec<PathBuf> = (out.iter())
+        .flat_map(|dir| names.iter().map(move |n| dir.join(format!("{n}.csv"))))
+        .collect();
+    files.extend(track_files.iter().map(PathBuf::as_path));
     let mut outputs = host_bench::viewer::Outputs::open(
         view,
         host_bench::viewer::topics::replay_channels(&names),
         "host-bench replay",
+        &files,
     )?;
     // Each method's track, kept for the view (shown together at the end, in time order).
     let mut tracks = Vec::new();
@@ -228,11 +235,17 @@ pub fn run_replay(
     }
     host_bench::viewer::topics::replay_tracks(&mut outputs.view.borrow_mut(), &tracks)?;
     drop(tracks);
-    staged.commit()?;
+    // The MCAP file first, and gone again should the tracks fail to go in place.
+    let mcap = outputs.finish()?;
+    if let Err(e) = staged.commit() {
+        if let Some(p) = &mcap {
+            let _ = std::fs::remove_file(p);
+        }
+        return Err(e);
+    }
     if let Some(made) = made {
         made.keep();
     }
-    let mcap = outputs.finish()?;
     if json {
         println!(
             "{}",

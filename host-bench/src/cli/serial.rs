@@ -145,7 +145,12 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
     played_stream::check_rows(&stream, &robot)
         .map_err(|e| anyhow::anyhow!("{}: {e:#}", a.ticks.display()))?;
     // A file that cannot be written, a port taken: said before the board is asked.
-    let mut outputs = Outputs::open(&a.view, topics::serial_channels(true), "host-bench play")?;
+    let mut outputs = Outputs::open(
+        &a.view,
+        topics::serial_channels(true),
+        "host-bench play",
+        &[&a.ticks, &robot_path],
+    )?;
     let mut link = a.port.open()?;
     link.faults.corrupt = a.fault_corrupt_frames.clone();
     link.faults.drop = a.fault_drop_frames.clone();
@@ -259,6 +264,8 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             )
         }
     };
+    // The port is let go before the holding: the next play can open it meanwhile.
+    drop(link);
     outputs.hold(&verdict);
     if let Some(m) = &outcome.first_mismatch {
         bail!(
@@ -310,7 +317,15 @@ pub fn run_record(a: RecordArgs) -> Result<()> {
             bail!("--duration must be a number of seconds in (0, 604800] (a week), got {d}");
         }
     }
-    let mut outputs = Outputs::open(&a.view, topics::serial_channels(false), "host-bench record")?;
+    let (robot_out, board_out) = record::companion_files(&a.out);
+    let mut files = vec![a.out.as_path(), &robot_out, &board_out];
+    files.extend(a.robot.as_deref());
+    let mut outputs = Outputs::open(
+        &a.view,
+        topics::serial_channels(false),
+        "host-bench record",
+        &files,
+    )?;
     let mut link = a.port.open()?;
     let bar = progress_bar("{spinner} recording {elapsed} {msg}");
     let outcome = record::record(
@@ -360,6 +375,7 @@ pub fn run_record(a: RecordArgs) -> Result<()> {
             }
         }
     }
+    drop(link);
     outputs.hold(&match &outcome.partial {
         None => format!("done: {} ticks, {:.1} s", outcome.ticks, outcome.seconds),
         Some(why) => format!("ended early: {why}"),
@@ -681,7 +697,12 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     }
     let mut channels = topics::emulate_channels(true);
     channels.retain(|c| c.topic != "/master/target");
-    let mut outputs = Outputs::open(&a.view, channels, "host-bench virtual-board")?;
+    let inputs: Vec<&Path> = [&a.robot, &a.true_robot]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect();
+    let mut outputs = Outputs::open(&a.view, channels, "host-bench virtual-board", &inputs)?;
     // With --mcap, Ctrl-C ends the serving and the file is finished (SIGTERM leaves none).
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let _own_ctrl_c = a

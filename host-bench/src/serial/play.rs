@@ -461,14 +461,28 @@ fn show(
     good: u64,
 ) -> Result<()> {
     let si = |p: Pose2| (p.x, p.y, p.theta);
-    for (t_ns, est, truth) in truth_rows {
-        let t = t_ns as f64 * 1e-9;
-        view.transform("/tf", "robot", t, si(truth))?;
-        view.pose("/truth/pose", t, si(truth))?;
-        view.json("/board/error", t, &topics::pose_error(si(est), si(truth)))?;
-    }
-    for (k, p) in host.drain(..) {
-        view.pose("/host/pose", k as f64 * period_s, si(p))?;
+    // The truth rows and the host's poses, each in time order, merged: every message is
+    // logged at its own time.
+    let mut rows = truth_rows.into_iter().peekable();
+    let mut poses = host.drain(..).peekable();
+    loop {
+        let row_t = rows.peek().map(|r| r.0 as f64 * 1e-9);
+        let pose_t = poses.peek().map(|(k, _)| *k as f64 * period_s);
+        let row_first = match (row_t, pose_t) {
+            (Some(r), Some(p)) => r <= p,
+            (r, _) => r.is_some(),
+        };
+        if row_first {
+            let (t_ns, est, truth) = rows.next().expect("peeked");
+            let t = t_ns as f64 * 1e-9;
+            view.transform("/tf", "robot", t, si(truth))?;
+            view.pose("/truth/pose", t, si(truth))?;
+            view.json("/board/error", t, &topics::pose_error(si(est), si(truth)))?;
+        } else if let Some((k, p)) = poses.next() {
+            view.pose("/host/pose", k as f64 * period_s, si(p))?;
+        } else {
+            break;
+        }
     }
     let t = update as f64 * period_s;
     view.pose("/board/pose", t, si(board))?;

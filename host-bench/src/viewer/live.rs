@@ -6,21 +6,28 @@
 //! * the bench page, for a browser with no viewer installed: `GET /` serves `page.html`, which
 //!   connects back to the same port and draws the run.
 //!
-//! Plain threads: one accepting, one per client. Memory is bounded whatever a client does:
-//! each client's queue holds [`CLIENT_QUEUE`] messages (a slow client loses messages, counted,
-//! never the run's time), and each channel keeps its last [`HISTORY`] messages so a page opened
-//! part way through a run still draws it from the start (for runs up to that length).
+//! Plain threads: one accepting, one per client, at most [`MAX_CONNECTIONS`]. Whatever a client
+//! does, the run is never held up and memory stays bounded: the run's thread only queues (a
+//! client's queue holds [`CLIENT_QUEUE`] messages; a slow client loses messages, counted, and
+//! one that stops reading is dropped after [`WRITE_TIMEOUT`]), a request head must arrive whole
+//! within [`HEAD_TIMEOUT`], a client's message is at most [`MAX_CLIENT_MESSAGE`] bytes. Each
+//! channel keeps its last [`HISTORY`] messages for the page (`GET /history`, in time order), so
+//! a page opened part way through a run still draws it from the start; a WebSocket client gets
+//! what is logged from its subscription on, as the protocol's players expect (a message older
+//! than the last they had reads to them as a seek).
 
 use std::collections::{HashMap, VecDeque};
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result};
 use serde_json::json;
 use tungstenite::handshake::server::{ErrorResponse, Request, Response};
+use tungstenite::protocol::WebSocketConfig;
 use tungstenite::{Message, WebSocket};
 
 use super::{Channel, Sink};
@@ -31,10 +38,18 @@ pub const DEFAULT_ADDR: &str = "127.0.0.1:8765";
 pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.websocket.v1", "foxglove.sdk.v1"];
 /// Messages queued for one client before it loses some.
 pub const CLIENT_QUEUE: usize = 4096;
-/// Messages kept per channel for clients that subscribe late.
+/// Messages kept per channel for the page's `GET /history`.
 pub const HISTORY: usize = 20_000;
+/// Connections served at once; more are answered 503.
+pub const MAX_CONNECTIONS: usize = 32;
 /// The largest HTTP request head read (a browser's is under 2 KiB).
 const MAX_HEAD: usize = 16 * 1024;
+/// How long a request head may take to arrive, whole.
+pub const HEAD_TIMEOUT: Duration = Duration::from_secs(5);
+/// A client that takes no bytes for this long is dropped.
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
+/// The largest message a client may send (a subscribe of every channel is under 4 KiB).
+pub const MAX_CLIENT_MESSAGE: usize = 64 * 1024;
 
 const PAGE: &str = include_str!("page.html");
 
@@ -43,6 +58,7 @@ const PAGE: &str = include_str!("page.html");
 pub struct LiveServer {
     shared: Arc<Mutex<Shared>>,
     addr: SocketAddr,
+    connections: Arc<AtomicUsize>,
 }
 
 #[derive(Default)]
@@ -76,16 +92,37 @@ impl LiveServer {
                 ..Default::default()
             })),
             addr,
+            connections: Arc::default(),
         };
         let s = server.clone();
         std::thread::Builder::new()
             .name("live-accept".into())
             .spawn(move || {
-                for stream in listener.incoming().flatten() {
+                for stream in listener.incoming() {
+                    let Ok(mut stream) = stream else {
+                        // Out of descriptors, say: try again in a while, not in a loop.
+                        std::thread::sleep(Duration::from_millis(100));
+                        continue;
+                    };
+                    if s.connections.fetch_add(1, Ordering::SeqCst) >= MAX_CONNECTIONS {
+                        s.connections.fetch_sub(1, Ordering::SeqCst);
+                        let _ = stream.set_write_timeout(Some(WRITE_TIMEOUT));
+                        let _ = stream.write_all(
+                            b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n\r\n",
+                        );
+                        continue;
+                    }
                     let s = s.clone();
-                    let _ = std::thread::Builder::new()
+                    let spawned = std::thread::Builder::new()
                         .name("live-client".into())
-                        .spawn(move || s.serve(stream));
+                        .spawn(move || {
+                            s.serve(stream);
+                            s.connections.fetch_sub(1, Ordering::SeqCst);
+                        });
+                    if spawned.is_err() {
+                        // The closure (and its count) went with the failed spawn.
+                        std::thread::sleep(Duration::from_millis(100));
+                    }
                 }
             })?;
         Ok(server)
@@ -104,7 +141,13 @@ impl LiveServer {
         let mut sh = self.lock();
         sh.state = state.to_string();
         let msg = Message::text(status_json(&sh.state));
-        sh.clients.retain(|c| c.tx.try_send(msg.clone()).is_ok());
+        // A full queue loses this message; only a client that is gone is let go.
+        sh.clients.retain(|c| {
+            !matches!(
+                c.tx.try_send(msg.clone()),
+                Err(TrySendError::Disconnected(_))
+            )
+        });
     }
 
     /// Messages slow clients did not get.
@@ -116,25 +159,63 @@ impl LiveServer {
         self.shared.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// One connection: the bench page over HTTP, or a WebSocket client.
+    /// One connection: the bench page or its history over HTTP, or a WebSocket client.
     fn serve(&self, mut stream: TcpStream) {
-        let _ = stream.set_read_timeout(Some(Duration::from_secs(5)));
+        let _ = stream.set_write_timeout(Some(WRITE_TIMEOUT));
         let Ok(head) = read_head(&mut stream) else {
             return;
         };
         let text = String::from_utf8_lossy(&head).to_ascii_lowercase();
-        if !text.contains("upgrade: websocket") {
-            let _ = serve_page(&mut stream, &text);
+        let upgrade = text
+            .lines()
+            .any(|l| l.starts_with("upgrade:") && l.contains("websocket"));
+        if !upgrade {
+            let path = text.split_whitespace().nth(1).unwrap_or("");
+            let _ = if path == "/history" {
+                self.serve_history(&mut stream)
+            } else {
+                serve_page(&mut stream, path)
+            };
             return;
         }
         let replay = Replayed {
             head: std::io::Cursor::new(head),
             stream,
         };
-        let Ok(ws) = tungstenite::accept_hdr(replay, choose_subprotocol) else {
+        let config = WebSocketConfig::default()
+            .max_message_size(Some(MAX_CLIENT_MESSAGE))
+            .max_frame_size(Some(MAX_CLIENT_MESSAGE));
+        let Ok(ws) = tungstenite::accept_hdr_with_config(replay, choose_subprotocol, Some(config))
+        else {
             return;
         };
         let _ = self.run_client(ws);
+    }
+
+    /// `GET /history`: what each channel kept, in time order, as
+    /// `{"messages": [[channel, t_ns, message], ...]}`. Taken under the lock as shared
+    /// pointers; written out after it.
+    fn serve_history(&self, stream: &mut TcpStream) -> std::io::Result<()> {
+        let mut all: Vec<(u64, usize, Arc<[u8]>)> = {
+            let sh = self.lock();
+            (sh.history.iter().enumerate())
+                .flat_map(|(ch, h)| h.iter().map(move |(t, d)| (*t, ch, d.clone())))
+                .collect()
+        };
+        all.sort_by_key(|(t, ch, _)| (*t, *ch));
+        let mut out = std::io::BufWriter::new(stream);
+        write!(
+            out,
+            "HTTP/1.1 200 OK\r\nContent-Type: application/json\r\nCache-Control: no-store\r\n\
+             Connection: close\r\n\r\n{{\"messages\":["
+        )?;
+        for (i, (t, ch, data)) in all.iter().enumerate() {
+            write!(out, "{}[{ch},{t},", if i > 0 { "," } else { "" })?;
+            out.write_all(data)?;
+            out.write_all(b"]")?;
+        }
+        out.write_all(b"]}")?;
+        out.flush()
     }
 
     fn run_client(&self, mut ws: WebSocket<Replayed>) -> Result<()> {
@@ -143,13 +224,14 @@ impl LiveServer {
             .set_read_timeout(Some(Duration::from_millis(20)))?;
         let (tx, rx) = sync_channel(CLIENT_QUEUE);
         let id = {
+            // Queued, not sent: no socket is written while the lock is held.
             let mut sh = self.lock();
             let id = sh.next_client;
             sh.next_client += 1;
-            ws.send(Message::text(server_info()))?;
-            ws.send(Message::text(status_json(&sh.state)))?;
+            let _ = tx.try_send(Message::text(server_info()));
+            let _ = tx.try_send(Message::text(status_json(&sh.state)));
             if !sh.channels.is_empty() {
-                ws.send(Message::text(advertise(&sh.channels)))?;
+                let _ = tx.try_send(Message::text(advertise(&sh.channels)));
             }
             sh.clients.push(Client {
                 id,
@@ -171,11 +253,16 @@ impl LiveServer {
     ) -> Result<()> {
         loop {
             while let Ok(m) = rx.try_recv() {
+                // A client that takes nothing for WRITE_TIMEOUT ends here, with an error.
                 ws.send(m)?;
             }
             match ws.read() {
                 Ok(Message::Text(t)) => self.on_request(id, t.as_str()),
-                Ok(Message::Close(_)) => return Ok(()),
+                Ok(Message::Close(_)) => {
+                    // The close handshake's reply, queued by the read.
+                    let _ = ws.flush();
+                    return Ok(());
+                }
                 Ok(_) => {}
                 Err(tungstenite::Error::Io(e))
                     if matches!(
@@ -188,16 +275,15 @@ impl LiveServer {
     }
 
     /// A client's JSON request: subscribe and unsubscribe (the rest of the protocol, client
-    /// publishing, parameters, services, is not offered in `serverInfo`'s capabilities).
+    /// publishing, parameters, services, is not offered in `serverInfo`'s capabilities). A
+    /// subscription takes what is logged from now on.
     fn on_request(&self, id: u64, text: &str) {
         let Ok(req) = serde_json::from_str::<serde_json::Value>(text) else {
             return;
         };
         let mut sh = self.lock();
-        let Shared {
-            clients, history, ..
-        } = &mut *sh;
-        let Some(client) = clients.iter_mut().find(|c| c.id == id) else {
+        let channels = sh.channels.len();
+        let Some(client) = sh.clients.iter_mut().find(|c| c.id == id) else {
             return;
         };
         match req["op"].as_str() {
@@ -206,14 +292,9 @@ impl LiveServer {
                     let (Some(sub), Some(ch)) = (s["id"].as_u64(), s["channelId"].as_u64()) else {
                         continue;
                     };
-                    let ch = ch as usize;
-                    if ch >= history.len() {
-                        continue;
-                    }
-                    client.subscribed.insert(ch, sub as u32);
-                    // What the channel carried so far, then the rest as it comes.
-                    for (t, data) in &history[ch] {
-                        let _ = client.tx.try_send(data_message(sub as u32, *t, data));
+                    // One subscription a channel: a channel named again takes the new id.
+                    if (ch as usize) < channels {
+                        client.subscribed.insert(ch as usize, sub as u32);
                     }
                 }
             }
@@ -247,7 +328,9 @@ impl Sink for LiveServer {
     fn message(&mut self, id: usize, t_ns: u64, data: &[u8]) -> Result<()> {
         let mut sh = self.lock();
         let data: Arc<[u8]> = data.into();
-        let h = &mut sh.history[id];
+        let Some(h) = sh.history.get_mut(id) else {
+            return Ok(());
+        };
         if h.len() == HISTORY {
             h.pop_front();
         }
@@ -336,26 +419,36 @@ fn choose_subprotocol(req: &Request, mut res: Response) -> Result<Response, Erro
     }
 }
 
-/// The request head, up to its blank line.
+/// The request head, up to its blank line, whole within [`HEAD_TIMEOUT`].
 fn read_head(stream: &mut TcpStream) -> std::io::Result<Vec<u8>> {
+    let deadline = Instant::now() + HEAD_TIMEOUT;
     let mut head = Vec::new();
     let mut buf = [0u8; 1024];
-    while !head.windows(4).any(|w| w == b"\r\n\r\n") {
-        if head.len() > MAX_HEAD {
-            return Err(std::io::ErrorKind::InvalidData.into());
-        }
+    loop {
+        let left = deadline
+            .checked_duration_since(Instant::now())
+            .filter(|d| !d.is_zero())
+            .ok_or(std::io::ErrorKind::TimedOut)?;
+        stream.set_read_timeout(Some(left))?;
         let n = stream.read(&mut buf)?;
         if n == 0 {
             return Err(std::io::ErrorKind::UnexpectedEof.into());
         }
+        // Only the new bytes and the three before them can complete the blank line.
+        let from = head.len().saturating_sub(3);
         head.extend_from_slice(&buf[..n]);
+        if head[from..].windows(4).any(|w| w == b"\r\n\r\n") {
+            return Ok(head);
+        }
+        if head.len() > MAX_HEAD {
+            return Err(std::io::ErrorKind::InvalidData.into());
+        }
     }
-    Ok(head)
 }
 
 /// `GET /` is the page; anything else 404.
-fn serve_page(stream: &mut TcpStream, head: &str) -> std::io::Result<()> {
-    let path = head.split_whitespace().nth(1).unwrap_or("");
+fn serve_page(stream: &mut TcpStream, path: &str) -> std::io::Result<()> {
+    let path = path.split('?').next().unwrap_or("");
     let (status, kind, body) = if path == "/" || path == "/index.html" {
         ("200 OK", "text/html; charset=utf-8", PAGE)
     } else {

@@ -92,8 +92,15 @@ impl Inner {
         meta.insert("command".to_string(), self.what.clone());
         meta.insert(
             "log_time".to_string(),
-            "the run's own time (simulated or played) from its start".to_string(),
+            "the run's own time, ns: simulated from the start (emulate, virtual-board), played \
+             from the stream's start (play, replay), the board's clock since power-on (record)"
+                .to_string(),
         );
+        // When, on the wall clock, the file was begun: the log times carry no date.
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        meta.insert("started_unix_s".to_string(), now.to_string());
         self.writer.write_metadata(&mcap::records::Metadata {
             name: "omnibench".into(),
             metadata: meta,

@@ -19,7 +19,7 @@ mod outputs;
 pub mod schemas;
 pub mod topics;
 
-pub use outputs::{Outputs, Pacer, ViewArgs};
+pub use outputs::{Outputs, Pacer, ViewArgs, LIVE_SPEEDS};
 
 use anyhow::Result;
 use serde::Serialize;
@@ -141,10 +141,10 @@ impl View {
         }
         let id = self.id(topic);
         if !self.started {
-            self.started = true;
             for s in &mut self.sinks {
                 s.start(&self.channels)?;
             }
+            self.started = true;
         }
         self.buf.clear();
         serde_json::to_writer(&mut self.buf, msg)?;

@@ -2,6 +2,8 @@
 
 use std::cell::RefCell;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
@@ -23,7 +25,7 @@ pub struct ViewArgs {
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_ADDR)]
     pub live: Option<String>,
     /// With --live: keep serving this many seconds after the run ends, so the page and the
-    /// viewers can be looked at [default: until Ctrl-C].
+    /// viewers can be looked at [default: until Ctrl-C, then the run's own exit status].
     #[arg(long, value_name = "SECS", requires = "live")]
     pub live_hold: Option<f64>,
 }
@@ -41,15 +43,29 @@ pub struct Outputs {
 impl Outputs {
     /// Opens what `args` asks for: the MCAP file's temporary file (its folder and name are
     /// checked now, before the run), the live server's port. `what` names the command.
-    pub fn open(args: &ViewArgs, channels: Vec<Channel>, what: &str) -> Result<Self> {
+    /// `files` are the command's other files, inputs and outputs: the MCAP file may not be
+    /// one of them.
+    pub fn open(
+        args: &ViewArgs,
+        channels: Vec<Channel>,
+        what: &str,
+        files: &[&std::path::Path],
+    ) -> Result<Self> {
         if let Some(h) = args.live_hold {
-            if !(h >= 0.0 && h.is_finite()) {
-                anyhow::bail!("--live-hold {h}: a number of seconds, 0 or more");
+            if !(0.0..=MAX_HOLD_S).contains(&h) {
+                anyhow::bail!("--live-hold {h}: seconds, 0 to {MAX_HOLD_S}");
             }
         }
         let mut view = View::new(channels.clone());
         let mcap = match &args.mcap {
             Some(path) => {
+                if let Some(other) = files.iter().find(|f| same_file(path, f)) {
+                    anyhow::bail!(
+                        "--mcap {}: that is {} too; name another file",
+                        path.display(),
+                        other.display()
+                    );
+                }
                 let f = McapFile::create(path, what)?;
                 view.add(f.sink());
                 Some(f)
@@ -96,28 +112,62 @@ impl Outputs {
         }
     }
 
-    /// With --live, after the run: keep serving for --live-hold seconds, or until Ctrl-C.
+    /// With --live, after the run: keep serving for --live-hold seconds, or until Ctrl-C,
+    /// then return, so the command ends with the run's own status and message.
     pub fn hold(&self, state: &str) {
         let Some(live) = &self.live else {
             return;
         };
         live.set_state(state);
-        match self.hold {
-            Some(s) => std::thread::sleep(Duration::from_secs_f64(s)),
-            None => {
-                eprintln!(
-                    "live: the run is over; still serving http://{}/ (Ctrl-C to quit)",
-                    live.addr()
-                );
-                loop {
-                    std::thread::park();
-                }
-            }
+        let dropped = live.dropped();
+        if dropped > 0 {
+            eprintln!(
+                "live: {dropped} messages were not delivered to clients too slow to take them"
+            );
+        }
+        let until = self
+            .hold
+            .map(|s| Instant::now() + Duration::from_secs_f64(s));
+        if until.is_none() {
+            eprintln!(
+                "live: the run is over ({state}); still serving http://{}/ (Ctrl-C to end)",
+                live.addr()
+            );
+        }
+        // Ctrl-C ends the holding, not the process.
+        let stop = Arc::new(AtomicBool::new(false));
+        let _own = crate::formats::atomic::OwnCtrlC::take();
+        let _ = signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone());
+        while !stop.load(Ordering::Relaxed) && until.is_none_or(|u| Instant::now() < u) {
+            std::thread::sleep(Duration::from_millis(50));
         }
     }
 }
 
-/// Paces a run that is faster than real time (`emulate --live`) to `speed` times real time.
+/// The longest --live-hold, seconds (a day).
+const MAX_HOLD_S: f64 = 86_400.0;
+
+/// Whether `a` and `b` name one file (through `.`, `..` and symbolic links in their folders).
+fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    let full = |p: &std::path::Path| {
+        let name = p.file_name()?;
+        let folder = match p.parent() {
+            Some(f) if !f.as_os_str().is_empty() => f,
+            _ => std::path::Path::new("."),
+        };
+        Some(std::fs::canonicalize(folder).ok()?.join(name))
+    };
+    match (full(a), full(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => a == b,
+    }
+}
+
+/// The range of `--live-speed`.
+pub const LIVE_SPEEDS: std::ops::RangeInclusive<f64> = 0.01..=1000.0;
+
+/// Paces a run that is faster than real time (`emulate --live`) to `speed` times real time
+/// (within [`LIVE_SPEEDS`]).
 pub struct Pacer {
     start: Instant,
     speed: f64,

@@ -22,7 +22,8 @@ mod show;
 mod write;
 
 use collect::{board_ns, take_reports, Collected, Early};
-use write::{companion_files, write};
+pub use write::companion_files;
+use write::write;
 
 use super::link::Link;
 use super::reports::ReportReader;

@@ -11,7 +11,7 @@ use super::{RecordOutcome, RecordRequest};
 use crate::formats::tickstream::{self, Event as Row, TickStream};
 
 /// The files written beside a recording `out`: `STEM.robot.toml` and `STEM.board.csv`.
-pub(super) fn companion_files(out: &Path) -> (PathBuf, PathBuf) {
+pub fn companion_files(out: &Path) -> (PathBuf, PathBuf) {
     let stem = out
         .file_name()
         .and_then(|n| n.to_str())
