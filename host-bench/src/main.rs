@@ -245,7 +245,7 @@ enum Command {
     Record(cli::serial::RecordArgs),
     /// Both boards emulated behind a pseudo-terminal, in real time: prints `port: /dev/pts/N`
     /// and serves `play` and `record` until killed.
-    VirtualBoard(cli::serial::VirtualBoardArgs),
+    VirtualBoard(cli::virtual_board::VirtualBoardArgs),
 }
 
 fn main() -> ExitCode {
@@ -512,6 +512,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Flash(a) => cli::flash::run_flash(a),
         Command::Play(a) => cli::serial::run_play(a),
         Command::Record(a) => cli::serial::run_record(a),
-        Command::VirtualBoard(a) => cli::serial::run_virtual_board(a),
+        Command::VirtualBoard(a) => cli::virtual_board::run_virtual_board(a),
     }
 }

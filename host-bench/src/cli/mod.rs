@@ -9,3 +9,4 @@ pub mod generate;
 pub mod pursuit_sweep;
 pub mod serial;
 pub mod sweep;
+pub mod virtual_board;

@@ -7,7 +7,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -476,24 +475,11 @@ where
         .x_desc("time (s)")
         .y_desc("position error (mm, log)")
         .draw()?;
-    for (name, data, color) in [
+    let series: [Series; 2] = [
         ("slave odometry", &slave, SLAVE_COLOR),
         ("master estimate", &master, MASTER_COLOR),
-    ] {
-        chart
-            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))?
-            .label(name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()?;
-    Ok(())
+    ];
+    draw_lines(&mut chart, &series, 1, SeriesLabelPosition::UpperRight)
 }
 
 /// A square window (x0, x1, y0, y1) around the points with a 10 % margin: equal scales on both
@@ -526,8 +512,8 @@ type Series<'a> = (&'a str, &'a [(f64, f64)], RGBColor);
 type OwnedSeries = (String, Vec<(f64, f64)>, RGBColor);
 
 /// Draw named line series with a legend; empty series are left out.
-fn draw_lines<'a, DB: DrawingBackend + 'a>(
-    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+fn draw_lines<'a, DB: DrawingBackend + 'a, CT: CoordTranslate<From = (f64, f64)>>(
+    chart: &mut ChartContext<'a, DB, CT>,
     series: &[Series],
     width: u32,
     legend_at: SeriesLabelPosition,
@@ -658,20 +644,7 @@ fn draw_case(
         .iter()
         .map(|(n, p, c)| (n.as_str(), p.as_slice(), *c))
         .collect();
-    for &(name, data, color) in &series {
-        chart
-            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))?
-            .label(name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::LowerRight)
-        .draw()?;
+    draw_lines(&mut chart, &series, 1, SeriesLabelPosition::LowerRight)?;
     root.present()?;
     Ok(())
 }

@@ -126,6 +126,24 @@ impl Link {
     }
 
     /// The rate the port runs at now.
+    /// The link's rate and counters as an `omnibench.Link` message, with `more` fields of the
+    /// command's own (`--mcap`, `--live`).
+    pub fn view_counters(&self, more: serde_json::Value) -> serde_json::Value {
+        let s = &self.stats;
+        let mut v = serde_json::json!({
+            "baud": self.baud(),
+            "bytes_out": s.bytes_sent,
+            "bytes_in": s.bytes_received,
+            "frames_out": s.frames_sent,
+            "frames_in": s.frames_received,
+            "frames_rejected": s.frames_rejected,
+        });
+        if let (Some(v), serde_json::Value::Object(more)) = (v.as_object_mut(), more) {
+            v.extend(more);
+        }
+        v
+    }
+
     pub fn baud(&self) -> u32 {
         self.baud
     }

@@ -486,20 +486,13 @@ fn show(
     }
     let t = update as f64 * period_s;
     view.pose("/board/pose", t, si(board))?;
-    let s = &link.stats;
     view.json(
         "/link",
         t,
-        &serde_json::json!({
-            "baud": link.baud(),
-            "bytes_out": s.bytes_sent,
-            "bytes_in": s.bytes_received,
-            "frames_out": s.frames_sent,
-            "frames_in": s.frames_received,
-            "frames_rejected": s.frames_rejected,
-            "events_frames": s.events_frames,
+        &link.view_counters(serde_json::json!({
+            "events_frames": link.stats.events_frames,
             "updates_checked": good,
-        }),
+        })),
     )
 }
 

@@ -98,19 +98,13 @@ impl Shown {
             )?;
         }
         if ticked || posed {
-            let s = &link.stats;
             view.json(
                 "/link",
                 t,
-                &serde_json::json!({
-                    "baud": link.baud(),
-                    "bytes_out": s.bytes_sent,
-                    "bytes_in": s.bytes_received,
-                    "frames_in": s.frames_received,
-                    "frames_rejected": s.frames_rejected,
+                &link.view_counters(serde_json::json!({
                     "lost_events": c.lost_events,
                     "lost_updates": c.lost_updates,
-                }),
+                })),
             )?;
         }
         Ok(())
