@@ -104,6 +104,12 @@ fn emulate_writes_an_mcap_file_the_viewers_read() {
     assert_eq!(schema("/slave/error"), "omnibench.PoseError");
     assert_eq!(schema("/master/wheels"), "omnibench.Wheels");
     assert_eq!(schema("/master/status"), "omnibench.Status");
+    assert_eq!(schema("/encoders"), "omnibench.Encoders");
+    assert_eq!(schema("/master/link"), "omnibench.Link");
+    // The master takes a slave frame every 2 ms: its counter runs on.
+    let link = &ch["/master/link"].messages;
+    let ok = |i: usize| link[i].1["spi_frames_ok"].as_u64().unwrap();
+    assert!(ok(199) > ok(100) + 400, "{} then {}", ok(100), ok(199));
     assert!(ch.values().all(|c| c.encoding == "json"));
     // A row every 10 ms of simulated time, logged at its own time.
     assert_eq!(count(&ch, "/truth/pose"), 200);

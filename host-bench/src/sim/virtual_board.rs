@@ -474,7 +474,6 @@ pub fn serve(
             );
             let mut v = v.borrow_mut();
             crate::viewer::topics::emulate_row(&mut v, &row)?;
-            let counters = master_shared.with(|c| c.counters()).unwrap_or_default();
             v.json(
                 "/link",
                 t_s,
@@ -482,10 +481,6 @@ pub fn serve(
                     "baud": rate,
                     "bytes_from_host": bytes_from_host,
                     "bytes_to_host": bytes_to_host,
-                    "spi_frames_ok": counters.spi_ok,
-                    "spi_frames_rejected": counters.spi_rejected,
-                    "serial_frames_ok": counters.serial_ok,
-                    "serial_frames_rejected": counters.serial_rejected,
                 }),
             )?;
         }

@@ -7,12 +7,12 @@
 //! | `/truth/pose` | foxglove.PoseInFrame | ✓ | truth rows | truth (virtual board) | truth rows |
 //! | `/slave/pose`, `/slave/error` | PoseInFrame, PoseError | ✓ | | | |
 //! | `/master/estimate`, `/master/error`, `/master/target` | PoseInFrame, PoseError | ✓ | | | |
-//! | `/master/wheels`, `/master/status` | Wheels, Status | ✓ | | | |
+//! | `/master/wheels`, `/master/status`, `/master/link` | Wheels, Status, Link | ✓ | | | |
 //! | `/board/pose`, `/board/error` | PoseInFrame, PoseError | | the slave's reported poses | ✓ | |
 //! | `/host/pose` | PoseInFrame | | the host's own computation | | |
 //! | `/odometry/METHOD/pose`, `/odometry/METHOD/error` | PoseInFrame, PoseError | | | | each method |
-//! | `/encoders` | Encoders | | | ✓ | |
-//! | `/link` | Link | virtual-board | ✓ | ✓ | |
+//! | `/encoders` | Encoders | ✓ | | ✓ | |
+//! | `/link` (the serial port's) | Link | virtual-board | ✓ | ✓ | |
 
 use anyhow::Result;
 use robot_math::se2::wrap_angle;
@@ -53,7 +53,7 @@ pub fn pose_error(est: (f64, f64, f64), truth: (f64, f64, f64)) -> serde_json::V
 }
 
 /// `emulate`'s (and `virtual-board`'s) channels.
-pub fn emulate_channels(with_link: bool) -> Vec<Channel> {
+pub fn emulate_channels(with_serial_port: bool) -> Vec<Channel> {
     let mut c = vec![
         Channel::transform("/tf"),
         Channel::pose("/truth/pose"),
@@ -64,8 +64,10 @@ pub fn emulate_channels(with_link: bool) -> Vec<Channel> {
         Channel::pose("/master/target"),
         Channel::json("/master/wheels", schemas::WHEELS.0, schemas::WHEELS.1),
         Channel::json("/master/status", schemas::STATUS.0, schemas::STATUS.1),
+        Channel::json("/encoders", schemas::ENCODERS.0, schemas::ENCODERS.1),
+        Channel::json("/master/link", schemas::LINK.0, schemas::LINK.1),
     ];
-    if with_link {
+    if with_serial_port {
         c.push(Channel::json("/link", schemas::LINK.0, schemas::LINK.1));
     }
     c
@@ -102,6 +104,23 @@ pub fn emulate_row(view: &mut View, r: &LogRow) -> Result<()> {
         "/master/status",
         t,
         &serde_json::json!({"flags": r.status, "set": status_names(r.status)}),
+    )?;
+    view.json(
+        "/encoders",
+        t,
+        &serde_json::json!({"counts": r.encoder_counts}),
+    )?;
+    let l = &r.link;
+    view.json(
+        "/master/link",
+        t,
+        &serde_json::json!({
+            "spi_frames_ok": l.spi_ok,
+            "spi_frames_rejected": l.spi_rejected,
+            "slave_rx_rejected": l.slave_rx_rejected,
+            "serial_frames_ok": l.serial_ok,
+            "serial_frames_rejected": l.serial_rejected,
+        }),
     )
 }
 

@@ -575,5 +575,7 @@ pub(crate) fn log_row(
         duty_2_permille: tel.duty_permille[1],
         duty_3_permille: tel.duty_permille[2],
         status: tel.status,
+        encoder_counts: plant.encoder_counts(),
+        link: master.with(|c| c.counters()).unwrap_or_default(),
     }
 }

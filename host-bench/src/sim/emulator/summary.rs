@@ -27,6 +27,13 @@ pub struct LogRow {
     pub duty_2_permille: i16,
     pub duty_3_permille: i16,
     pub status: u16,
+    /// The measuring encoders' counts (x4) since power-on: for the view (`--mcap`, `--live`),
+    /// not the CSV.
+    #[serde(skip)]
+    pub encoder_counts: [i64; 2],
+    /// The master's link counters (SPI and serial frames taken and refused): for the view.
+    #[serde(skip)]
+    pub link: protocol::serial::LinkCounters,
 }
 
 /// What `emulate` reports.
