@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Reads an MCAP file host-bench wrote with Python's `mcap` package, an implementation of the
 format that is not ours: every channel's schema and encoding, every message decoded as JSON
-with the fields its JSON schema names, log times never going back, and the summary's counts
+with the fields its JSON schema requires, log times never going back, and the summary's counts
 equal to the messages read. Prints a line per channel; exits 1 on any difference.
 
     scripts/mcap-check.py FILE [--expect TOPIC=N ...] [--topics T1,T2,...]
@@ -31,11 +31,11 @@ def main():
             last = message.log_time
             if schema.encoding != "jsonschema" or channel.message_encoding != "json":
                 errors.append(f"{channel.topic}: {schema.encoding}/{channel.message_encoding}")
-            fields = json.loads(schema.data).get("properties", {}).keys()
+            fields = json.loads(schema.data).get("required", [])
             body = json.loads(message.data)
             missing = [k for k in fields if k not in body]
-            if missing:
-                errors.append(f"{channel.topic}: a message lacks {missing}")
+            if missing and len(errors) < 20:
+                errors.append(f"{channel.topic}: a message at {message.log_time} ns lacks {missing}")
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
     stats = summary.statistics.channel_message_counts
     for cid, ch in sorted(summary.channels.items()):

@@ -8,6 +8,7 @@ pub const POSE_IN_FRAME: &str = r#"{
   "title": "foxglove.PoseInFrame",
   "description": "A timestamped pose for an object or reference frame in 3D space",
   "type": "object",
+  "required": ["timestamp", "frame_id", "pose"],
   "properties": {
     "timestamp": {"type": "object", "properties": {"sec": {"type": "integer", "minimum": 0}, "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}},
     "frame_id": {"type": "string"},
@@ -23,6 +24,7 @@ pub const FRAME_TRANSFORM: &str = r#"{
   "title": "foxglove.FrameTransform",
   "description": "A transform between two reference frames in 3D space",
   "type": "object",
+  "required": ["timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"],
   "properties": {
     "timestamp": {"type": "object", "properties": {"sec": {"type": "integer", "minimum": 0}, "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}},
     "parent_frame_id": {"type": "string"},
@@ -39,6 +41,7 @@ pub const POSE_ERROR: (&str, &str) = (
   "title": "omnibench.PoseError",
   "description": "An estimated pose against the true one: distance and heading difference",
   "type": "object",
+  "required": ["position_mm", "heading_deg"],
   "properties": {
     "position_mm": {"type": "number", "description": "distance between the estimated and the true position, millimetres"},
     "heading_deg": {"type": "number", "description": "estimated minus true heading, degrees, in (-180, 180]"}
@@ -53,6 +56,7 @@ pub const WHEELS: (&str, &str) = (
   "title": "omnibench.Wheels",
   "description": "The master's wheel speed commands and motor duties",
   "type": "object",
+  "required": ["cmd_m_s", "duty_permille"],
   "properties": {
     "cmd_m_s": {"type": "array", "items": {"type": "number"}, "description": "each wheel's commanded rim speed, m/s"},
     "duty_permille": {"type": "array", "items": {"type": "integer"}, "description": "each motor's PWM duty, signed, per mille"}
@@ -67,6 +71,7 @@ pub const STATUS: (&str, &str) = (
   "title": "omnibench.Status",
   "description": "The master's status word and the names of the flags set in it (docs/protocol.md)",
   "type": "object",
+  "required": ["flags", "set"],
   "properties": {
     "flags": {"type": "integer"},
     "set": {"type": "array", "items": {"type": "string"}}
@@ -79,8 +84,9 @@ pub const ENCODERS: (&str, &str) = (
     "omnibench.Encoders",
     r#"{
   "title": "omnibench.Encoders",
-  "description": "Each measuring wheel's encoder count (quadrature, x4) since the run started, and the edges seen",
+  "description": "Each measuring wheel's encoder count (quadrature, x4), and the edges seen (recordings)",
   "type": "object",
+  "required": ["counts"],
   "properties": {
     "counts": {"type": "array", "items": {"type": "integer"}},
     "edges": {"type": "integer", "description": "encoder edges (events) so far"}
