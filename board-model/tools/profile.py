@@ -1,0 +1,78 @@
+#!/usr/bin/env python3
+"""Where the release images spend their time on the chip model: each function's share of the
+code bytes executed (every basic block the CPU runs, weighted by its size in bytes: Thumb-2
+mixes 2- and 4-byte instructions, so this is a share of work, not an instruction count).
+
+    python3 board-model/tools/profile.py [--ms 150] [--top 15] [--slave ELF] [--master ELF]
+
+Both boards run from reset for --ms of simulated time, as `scripts/board-model boot` runs
+them (idle after boot: the SPI link's polls, the time driver, the executors). A unicorn block
+hook on every block makes the model about 10x slower than without it.
+"""
+
+import argparse
+import bisect
+import collections
+import os
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from unicorn import UC_HOOK_BLOCK  # noqa: E402
+
+from f103.bench import Bench, IMAGES  # noqa: E402
+from f103.core import Chip  # noqa: E402
+
+
+def functions(path):
+    """(start, size, demangled name) of every function in the ELF, by address."""
+    out = subprocess.run(
+        ["llvm-nm", "-C", "-S", "--defined-only", path], capture_output=True, text=True, check=True
+    ).stdout
+    funcs = []
+    for line in out.splitlines():
+        parts = line.split(" ", 3)
+        if len(parts) == 4 and parts[2] in "tT":
+            funcs.append((int(parts[0], 16) & ~1, int(parts[1], 16), parts[3]))
+    return sorted(funcs)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--ms", type=float, default=150.0, help="simulated time from reset")
+    ap.add_argument("--top", type=int, default=15, help="functions listed per board")
+    ap.add_argument("--slave", help="slave ELF")
+    ap.add_argument("--master", help="master ELF")
+    a = ap.parse_args()
+    bench = Bench(a.slave, a.master)
+    paths = {
+        "slave": a.slave or os.path.join(IMAGES, "firmware-slave"),
+        "master": a.master or os.path.join(IMAGES, "firmware-master"),
+    }
+    bytes_at = {}
+    for name, chip in bench.boards.items():
+        seen = collections.Counter()
+        bytes_at[name] = seen
+
+        def on_block(_uc, addr, size, _ud, seen=seen):
+            seen[addr] += size
+
+        chip.uc.hook_add(UC_HOOK_BLOCK, on_block)
+    bench.run(int(a.ms * 1e-3 * Chip.TICK_HZ))
+    for name, seen in bytes_at.items():
+        funcs = functions(paths[name])
+        starts = [f[0] for f in funcs]
+        per = collections.Counter()
+        for addr, n in seen.items():
+            i = bisect.bisect_right(starts, addr) - 1
+            inside = i >= 0 and addr < funcs[i][0] + funcs[i][1]
+            per[funcs[i][2] if inside else hex(addr)] += n
+        total = sum(per.values())
+        print(f"{name}: {total} code bytes executed in {a.ms:g} simulated ms")
+        for func, n in per.most_common(a.top):
+            print(f"  {100 * n / total:5.1f} %  {func[:100]}")
+
+
+if __name__ == "__main__":
+    main()
