@@ -28,7 +28,10 @@ from support import (  # noqa: E402
 )
 
 # from 0.5 s of simulated time: 400 counts forward on the left, 200 backwards on the right
-DRIVE = ["PA0,PA1,0.5,400,4000", "PA8,PA9,0.5,200,2000,rev"]
+# The edges start 1.5 s of simulated time after power-on: the recording must be under way by
+# then (the host's start, hello and switch to reporting take a few hundred ms of wall time,
+# and the model idles at about 1x). At 0.5 s, one clean CI run of five missed the first 36.
+DRIVE = ["PA0,PA1,1.5,400,4000", "PA8,PA9,1.5,200,2000,rev"]
 
 
 @needs_slave
