@@ -256,8 +256,10 @@ class Scs(Peripheral):
             return self.systick_cvr
         if off == 0xE01C:
             return 9000  # TENMS at 9 MHz (HCLK/8)
-        if 0xE100 <= off < 0xE380:
+        if 0xE100 <= off < 0xE300:
+            # ISER, ICER, ISPR, ICPR: 0x80 apart, a word per 32 lines
             group, idx = divmod(off - 0xE100, 0x80)
+            idx //= 4
             if idx >= 8:
                 return 0
             v = 0
@@ -267,10 +269,8 @@ class Scs(Peripheral):
                     break
                 if group == 0 or group == 1:
                     bit = self.enabled[n]
-                elif group == 2 or group == 3:
-                    bit = (16 + n) in self.pending
                 else:
-                    bit = False
+                    bit = (16 + n) in self.pending
                 v |= bit << b
             return v
         if 0xE300 <= off < 0xE320:  # IABR
@@ -375,7 +375,9 @@ class Scs(Peripheral):
             self.systick_at = c.now
             return
         if 0xE100 <= off < 0xE300:
+            # ISER, ICER, ISPR, ICPR: 0x80 apart, a word per 32 lines
             group, idx = divmod(off - 0xE100, 0x80)
+            idx //= 4
             if idx >= 8:
                 return
             value &= mask

@@ -164,6 +164,27 @@ class TestNvic(unittest.TestCase):
         n.deactivate(16 + 30)  # line still high: pending again
         self.assertIn(16 + 30, n.pending)
 
+    def test_second_word_of_each_bank(self):
+        # PM0056 §4.3: ISER/ICER/ISPR/ICPR are banks of words, a word per 32 lines; the F103's
+        # lines 32..42 (SPI1 35, USART1 37, EXTI15_10 40) live in each bank's second word.
+        # The model once took the byte offset for the word's index and dropped every write to a
+        # second word: USART1's interrupt never fired.
+        n = StubChip().nvic
+        n.write(0xE104, 1 << (37 - 32), W)  # ISER1: USART1
+        self.assertTrue(n.enabled[37])
+        self.assertEqual(n.read(0xE104), 1 << 5)
+        self.assertEqual(n.read(0xE184), 1 << 5)  # ICER reads the enables too
+        n.write(0xE204, 1 << (40 - 32), W)  # ISPR1: EXTI15_10 pending
+        self.assertIn(16 + 40, n.pending)
+        self.assertEqual(n.read(0xE204), 1 << 8)
+        n.write(0xE284, 1 << (40 - 32), W)  # ICPR1
+        self.assertNotIn(16 + 40, n.pending)
+        n.write(0xE184, 1 << (37 - 32), W)  # ICER1
+        self.assertFalse(n.enabled[37])
+        self.assertEqual(n.read(0xE100), 0)
+        n.activate(16 + 37)  # IABR1: USART1 active (the bank after ICPR, read-only)
+        self.assertEqual(n.read(0xE304), 1 << 5)
+
 
 class TestUsart(unittest.TestCase):
     # RM0008 §27.3: a byte takes 10 bit times at 8N1; TXE at once, TC after the frame
