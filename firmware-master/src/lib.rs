@@ -3,7 +3,7 @@
 //! code runs on the STM32F103 (board layer in `main.rs` + `board/`) and inside the emulator.
 //!
 //! The decisions live in one sans-IO state machine, [`controller::Controller`]; four thin
-//! async tasks feed it and carry out what it decides, joined in [`run`]:
+//! async tasks feed it and carry out what it decides, each a task of its own ([`tasks`]):
 //! * **host rx**: reassemble serial frames, hand messages to the controller;
 //! * **host tx**: send replies at once and telemetry at a fixed rate;
 //! * **slave poll**: one SPI transaction per period; command out, odometry in;
@@ -15,11 +15,11 @@ pub mod controller;
 pub mod drive_setup;
 pub mod ports;
 mod relay;
-mod tasks;
+pub mod tasks;
 
-/// The master's tasks are one task, joined in [`run`], on the board as in an emulation, and
-/// no interrupt handler touches their shared state: it takes no lock (see firmware-slave's
-/// `shared.rs`).
+/// The master's tasks run in one thread-mode executor, on the board as in an emulation, so
+/// none preempts another, and no interrupt handler touches their shared state: it takes no
+/// lock (see firmware-slave's `shared.rs`).
 use embassy_sync::blocking_mutex::raw::NoopRawMutex as SharedLock;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
@@ -28,7 +28,6 @@ use robot_math::pursuit::PursuitParams;
 
 use controller::Controller;
 use core::mem::MaybeUninit;
-pub use tasks::run;
 
 /// Robot geometry, rates and safety limits of the master.
 #[derive(Clone, Copy, Debug, PartialEq)]

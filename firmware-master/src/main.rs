@@ -2,7 +2,7 @@
 //! `firmware_master` library.
 //!
 //! On the board, `board::init` builds the hardware ports (SPI link to the slave, serial link to
-//! the host, motor drivers) and one task runs `firmware_master::run` on them. On the host this
+//! the host, motor drivers) and the four tasks of `firmware_master::tasks` run on them. On the host this
 //! binary is only a signpost: the same library runs inside the emulator instead.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
@@ -12,22 +12,43 @@ mod board;
 #[cfg(target_os = "none")]
 mod firmware {
     use embassy_executor::Spawner;
-    use firmware_master::{MasterConfig, MasterShared};
+    use firmware_master::{tasks, MasterConfig, MasterShared};
 
     use crate::board;
 
-    /// Runs the whole portable firmware; it never returns.
+    // The portable firmware's four tasks (`firmware_master::tasks`), each a task of its own so
+    // that a wake-up polls only the one it is for.
     #[embassy_executor::task]
-    async fn motion(
+    async fn host_rx(rx: board::HostRx, shared: &'static MasterShared) -> ! {
+        tasks::host_rx_task(rx, shared).await
+    }
+
+    #[embassy_executor::task]
+    async fn host_tx(
+        tx: board::HostTx,
+        shared: &'static MasterShared,
+        config: &'static MasterConfig,
+    ) -> ! {
+        tasks::host_tx_task(tx, shared, config).await
+    }
+
+    #[embassy_executor::task]
+    async fn slave_poll(
         bus: board::SlaveLink,
-        serial_rx: board::HostRx,
-        serial_tx: board::HostTx,
+        shared: &'static MasterShared,
+        config: &'static MasterConfig,
+    ) -> ! {
+        tasks::slave_poll_task(bus, shared, config).await
+    }
+
+    #[embassy_executor::task]
+    async fn control(
         motors: board::Motors,
         encoders: board::Encoders,
         shared: &'static MasterShared,
-        config: MasterConfig,
+        config: &'static MasterConfig,
     ) -> ! {
-        firmware_master::run(bus, serial_rx, serial_tx, motors, encoders, shared, &config).await
+        tasks::control_task(motors, encoders, shared, config).await
     }
 
     /// The chip's USB device: enumeration, and the CDC-ACM port's endpoints.
@@ -62,18 +83,19 @@ mod firmware {
             .spawn(bluepill::heartbeat(board.led).unwrap_or_else(|_| bluepill::already_running()));
         #[cfg(feature = "usb")]
         spawner.spawn(usb(board.usb).unwrap_or_else(|_| bluepill::already_running()));
-        spawner.spawn(
-            motion(
-                board.slave,
-                board.host_rx,
-                board.host_tx,
-                board.motors,
-                board.encoders,
-                shared,
-                config,
-            )
-            .unwrap_or_else(|_| bluepill::already_running()),
-        );
+        let config: &'static MasterConfig = cortex_m::singleton!(: MasterConfig = config)
+            .unwrap_or_else(|| defmt::panic!("main ran twice"));
+        let mut motors = board.motors;
+        if !tasks::start(&mut motors, shared, config) {
+            // An impossible geometry is a build-time mistake: no task runs, the motors stay off.
+            return;
+        }
+        let running = bluepill::already_running;
+        spawner.spawn(host_rx(board.host_rx, shared).unwrap_or_else(|_| running()));
+        spawner.spawn(host_tx(board.host_tx, shared, config).unwrap_or_else(|_| running()));
+        spawner.spawn(slave_poll(board.slave, shared, config).unwrap_or_else(|_| running()));
+        spawner
+            .spawn(control(motors, board.encoders, shared, config).unwrap_or_else(|_| running()));
     }
 }
 

@@ -1,7 +1,13 @@
 //! The master's async tasks: thin loops between the ports and the [`Controller`](crate::controller::Controller).
+//!
+//! [`start`] first, then each task is a task of its own in the executor: on the board
+//! (`main.rs`) as in an emulation (host-bench's `spawn_master`). A wake-up then polls only the
+//! task it is for. Joined into one future, as they were, every timer, DMA and serial wake-up
+//! polled all four: a sixth of the master's instructions while it relayed a play, and the
+//! serial reader, polled by everyone else's wake-ups, hid that the chip model never raised
+//! USART1's interrupt.
 
-use embassy_futures::join::join4;
-use embassy_futures::select::{select3, Either3};
+use embassy_futures::select::{select, select3, Either, Either3};
 use embassy_time::{Duration, Instant, Ticker, Timer};
 use embedded_io_async::{Read, Write};
 use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
@@ -11,39 +17,36 @@ use crate::controller::Drive;
 use crate::ports::{MotorDrivers, MotorEncoders, SerialRate, SlaveBus};
 use crate::{MasterConfig, MasterShared};
 
-/// Run the master firmware forever.
-pub async fn run(
-    bus: impl SlaveBus,
-    serial_rx: impl Read,
-    serial_tx: impl Write + SerialRate,
-    mut motors: impl MotorDrivers,
-    encoders: impl MotorEncoders,
-    shared: &MasterShared,
-    config: &MasterConfig,
-) -> ! {
+/// Stop the motors and build the controller in `shared`: what runs before the tasks. False
+/// for a drive geometry it cannot run (a build-time mistake): then no task may run, and the
+/// motors stay off for good.
+pub fn start(motors: &mut impl MotorDrivers, shared: &MasterShared, config: &MasterConfig) -> bool {
     motors.stop();
-    if !shared.start(config) {
-        // An impossible geometry is a build-time mistake; keep the motors off for good.
-        loop {
-            Timer::after_secs(3600).await;
-        }
-    }
-    join4(
-        host_rx_task(serial_rx, shared),
-        host_tx_task(serial_tx, shared, config),
-        slave_poll_task(bus, shared, config),
-        control_task(motors, encoders, shared, config),
-    )
-    .await
-    .0
+    shared.start(config)
 }
 
 /// Reassemble host frames and hand each message to the controller.
-async fn host_rx_task(mut rx: impl Read, shared: &MasterShared) -> ! {
+///
+/// `rx.read` must be cancel-safe (a read dropped before it finished loses no byte), as
+/// embassy's DMA ring-buffered UART reader is: while play/record streams move, a read that
+/// has waited [`STREAM_TX_PERIOD`] is dropped and asked again, so the bytes come in at least
+/// that often. That reader itself finishes only when the line goes idle or half its buffer
+/// fills, and a host streaming back to back may keep the line busy: half of 2 KiB is 89 ms
+/// at 115 200 baud, far behind the acknowledgements the stream waits for.
+pub async fn host_rx_task(mut rx: impl Read, shared: &MasterShared) -> ! {
     let mut decoder = FrameDecoder::new();
     let mut buf = [0u8; 64];
     loop {
-        let n = match rx.read(&mut buf).await {
+        let streaming = shared.with(|c| c.streaming()).unwrap_or(false);
+        let read = if streaming {
+            match select(rx.read(&mut buf), Timer::after(STREAM_TX_PERIOD)).await {
+                Either::First(read) => read,
+                Either::Second(()) => continue,
+            }
+        } else {
+            rx.read(&mut buf).await
+        };
+        let n = match read {
             Ok(0) => {
                 // Nothing to read (a closed emulated link): don't spin.
                 Timer::after_millis(1).await;
@@ -74,6 +77,11 @@ async fn host_rx_task(mut rx: impl Read, shared: &MasterShared) -> ! {
                 }
             }
         }
+        // A read returns at once while bytes wait: without a yield between chunks, a backlog
+        // (a burst at 2 Mbaud) kept the other tasks waiting for milliseconds, and the SPI
+        // poll, resumed that late, dated its exchange's end 2.4 ms after the slave re-armed:
+        // a clock jump the controller takes for a slave reset.
+        embassy_futures::yield_now().await;
     }
 }
 
@@ -89,7 +97,7 @@ const STREAM_IDLE_PERIOD: Duration = Duration::from_millis(10);
 /// Send replies as they come, stream frames (acks, reports) as they are due, and telemetry
 /// at a fixed rate; switch the port's rate when a `BaudSet` answer is out, and back to the
 /// power-on rate when the switch did not work.
-async fn host_tx_task(
+pub async fn host_tx_task(
     mut tx: impl Write + SerialRate,
     shared: &MasterShared,
     config: &MasterConfig,
@@ -146,7 +154,7 @@ async fn host_tx_task(
 }
 
 /// Poll the slave at a fixed rate.
-async fn slave_poll_task(
+pub async fn slave_poll_task(
     mut bus: impl SlaveBus,
     shared: &MasterShared,
     config: &MasterConfig,
@@ -178,7 +186,7 @@ async fn slave_poll_task(
 }
 
 /// Fixed-rate control: read the motor encoders, decide, then drive the motors.
-async fn control_task(
+pub async fn control_task(
     mut motors: impl MotorDrivers,
     mut encoders: impl MotorEncoders,
     shared: &MasterShared,

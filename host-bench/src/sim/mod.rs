@@ -4,6 +4,7 @@
 pub mod adapter;
 pub mod emulator;
 pub mod generate;
+pub mod master_tasks;
 pub mod misbehaving;
 pub mod plant;
 pub mod serial_noise;

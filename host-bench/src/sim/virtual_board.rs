@@ -2,7 +2,7 @@
 //! pseudo-terminal, in real time, so `play` and `record` talk to it exactly as to real boards.
 //!
 //! ```text
-//!  play/record ── /dev/pts/N ══ pty ══ bridge ── UartLine x2 (115200 8N1) ──► firmware_master::run ── SpiWire ──► firmware_slave::run
+//!  play/record ── /dev/pts/N ══ pty ══ bridge ── UartLine x2 (115200 8N1) ──► firmware_master::tasks ── SpiWire ──► firmware_slave::run
 //!                                        │ (SimTruth every 10 ms)                                               ▲ encoders, absolute encoder
 //!                                        └────────────── Plant (the slave's robot, driven round a square) ──────┘
 //! ```
@@ -42,6 +42,7 @@ use virtual_time::Simulation;
 
 use super::adapter::Adapter;
 use super::emulator::hw::*;
+use super::master_tasks::{spawn_master, MasterPorts};
 use super::plant::{MeasuringSensors, Plant, PlantConfig};
 use super::serial_noise::{Receiver, SerialFaults, SerialNoise};
 use robot_math::motor::DcMotor;
@@ -347,6 +348,20 @@ pub fn serve(
         rate: master_rate.clone(),
         noise: None,
     };
+    // A macro, not a closure: the two calls give different motor types.
+    macro_rules! master_ports {
+        ($motors:expr, $encoders:expr) => {
+            MasterPorts {
+                bus: bus(),
+                serial_rx: UartRx(to_master.clone()),
+                serial_tx: uart_tx(),
+                motors: $motors,
+                encoders: $encoders,
+                shared: &master_shared,
+                config: &opts.master,
+            }
+        };
+    }
     // The master's motor outputs: to the wheels, or nowhere (the course pushes the robot).
     if opts.master_drives.is_some() {
         let motors = EmuMotors {
@@ -354,21 +369,10 @@ pub fn serve(
             source: DutySource::Master,
             steps: 0,
         };
-        let (bus, rx, tx) = (bus(), UartRx(to_master.clone()), uart_tx());
-        let (shaft, shared, config) = (
-            EmuMotorEncoders(plant.clone()),
-            &master_shared,
-            &opts.master,
-        );
-        sim.spawn(async move {
-            firmware_master::run(bus, rx, tx, motors, shaft, shared, config).await;
-        });
+        let encoders = EmuMotorEncoders(plant.clone());
+        spawn_master(&mut sim, master_ports!(motors, encoders));
     } else {
-        let (bus, rx, tx) = (bus(), UartRx(to_master.clone()), uart_tx());
-        let (shared, config) = (&master_shared, &opts.master);
-        sim.spawn(async move {
-            firmware_master::run(bus, rx, tx, Unconnected, Unconnected, shared, config).await;
-        });
+        spawn_master(&mut sim, master_ports!(Unconnected, Unconnected));
     }
 
     let wall = WallInstant::now();

@@ -2,7 +2,7 @@
 //! against the simulated robot, with the host speaking the real serial protocol.
 //!
 //! ```text
-//!  host task ── UartLine x2 (115200 8N1) ──► firmware_master::run ── SpiWire ──► firmware_slave::run
+//!  host task ── UartLine x2 (115200 8N1) ──► firmware_master::tasks ── SpiWire ──► firmware_slave::run
 //!                                              │ EmuMotors                        ▲ EmuCounters, EmuAbsEncoder
 //!                                              ▼                                  │
 //!                                            Plant (omni drive + measuring carriage = ground truth)
@@ -41,6 +41,7 @@ use robot_math::Pose2;
 use virtual_time::Simulation;
 
 use crate::sim::generate::EdgeMap;
+use crate::sim::master_tasks::{spawn_master, MasterPorts};
 use crate::sim::plant::{MeasuringSensors, Plant, PlantConfig};
 use crate::sim::serial_noise::{Receiver, SerialFaults, SerialNoise};
 use hw::*;
@@ -160,29 +161,29 @@ pub fn run_logged(
         slave_reset,
         slave_off,
     ));
-    sim.spawn(async {
-        firmware_master::run(
-            EmuMasterBus {
+    spawn_master(
+        &mut sim,
+        MasterPorts {
+            bus: EmuMasterBus {
                 wire: wire.clone(),
                 transfer_time: spi_transfer_time(opts.spi_clock_hz),
             },
-            UartRx(to_master.clone()),
-            UartTx {
+            serial_rx: UartRx(to_master.clone()),
+            serial_tx: UartTx {
                 line: to_host.clone(),
                 rate: rate.clone(),
                 noise: noise_to_host.clone(),
             },
-            EmuMotors {
+            motors: EmuMotors {
                 plant: plant.clone(),
                 source: opts.duties.clone(),
                 steps: 0,
             },
-            EmuMotorEncoders(plant.clone()),
-            &master_shared,
-            &opts.master,
-        )
-        .await;
-    });
+            encoders: EmuMotorEncoders(plant.clone()),
+            shared: &master_shared,
+            config: &opts.master,
+        },
+    );
     sim.spawn(until(
         opts.faults.host_silent_after.map(secs_to_instant),
         host::session(
