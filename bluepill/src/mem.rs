@@ -4,9 +4,10 @@
 //!
 //! `compiler_builtins` copies with unrolled, misalignment-shifting loops: 1 294 B of each image
 //! for copies that are mostly a frame or a struct of a few dozen bytes, while the slave must
-//! fit in 32 KiB. These move four words per `ldm`/`stm` pair where the caller promises
-//! alignment (the `4` and `8` forms, most of the calls), then words, then bytes; and a byte
-//! loop otherwise: 120 B in all. A 128 B SPI frame copied word-aligned is ~40 instructions
+//! fit in 32 KiB. These move four words per `ldm`/`stm` pair where both addresses are
+//! word-aligned (the `4` and `8` forms promise it), else words by unaligned `ldr`/`str`
+//! (a third of the master's copies were at odd addresses, a byte at a time), then the last
+//! bytes: 122 B in all. A 128 B SPI frame copied word-aligned is ~40 instructions
 //! (a word at a time, as until the master's tasks were profiled relaying a play: ~165, a fifth
 //! of the master's instructions; `compiler_builtins`: ~70), byte by byte ~520.
 //!
@@ -19,14 +20,16 @@ core::arch::global_asm!(
     ".thumb",
     ".p2align 2",
     // __aeabi_memcpy(dest r0, src r1, n r2): any alignment. Both word-aligned (most copies
-    // the compiler could not prove so are), on to the word loop; else a byte at a time.
+    // the compiler could not prove so are), on to the four-word loop; else words by plain
+    // LDR/STR, which the Cortex-M3 does at any address in memory (ARMv7-M A3.2.1: a split
+    // access; CCR.UNALIGN_TRP, which would trap them, is left clear), then bytes.
     ".global __aeabi_memcpy",
     ".type __aeabi_memcpy, %function",
     ".thumb_func",
     "__aeabi_memcpy:",
     "orr r3, r0, r1",
     "lsls r3, r3, #30",
-    "bne 3f",
+    "bne 1f",
     // Each entry's size ends where the next entry starts: code one falls into is counted once.
     ".size __aeabi_memcpy, . - __aeabi_memcpy",
     // __aeabi_memcpy4/8: both word-aligned. Words while four bytes are left, then the bytes.
@@ -55,7 +58,6 @@ core::arch::global_asm!(
     "b 1b",
     "2:",
     "adds r2, r2, #4",
-    "3:",
     "cbz r2, 4f",
     "5:",
     "ldrb r3, [r1], #1",
@@ -98,9 +100,8 @@ core::arch::global_asm!(
     "b 8f",
     ".size __aeabi_memclr4, . - __aeabi_memclr4",
     ".thumb_set __aeabi_memclr8, __aeabi_memclr4",
-    // __aeabi_memclr(dest r0, n r1): any alignment (word-aligned, on to the word loop);
-    // __aeabi_memset*(dest r0, n r1, byte r2) (the EABI's argument order, not C's): a byte
-    // at a time.
+    // __aeabi_memclr(dest r0, n r1): any alignment (word-aligned, on to the four-word loop;
+    // else words by plain STR, as in __aeabi_memcpy, then bytes).
     ".global __aeabi_memclr",
     ".type __aeabi_memclr, %function",
     ".thumb_func",
@@ -108,7 +109,10 @@ core::arch::global_asm!(
     "lsls r3, r0, #30",
     "beq 11b",
     "movs r2, #0",
+    "b 6b",
     ".size __aeabi_memclr, . - __aeabi_memclr",
+    // __aeabi_memset*(dest r0, n r1, byte r2) (the EABI's argument order, not C's): a byte
+    // at a time (nothing on the boards sets more than a few bytes to anything but zero).
     ".global __aeabi_memset",
     ".global __aeabi_memset4",
     ".global __aeabi_memset8",
