@@ -250,7 +250,7 @@ def cmd_boot(args):
 
 
 def _bench_for(args, boards=("slave", "master")):
-    return Bench(
+    bench = Bench(
         args.slave,
         args.master,
         slice_us=args.slice_us,
@@ -258,6 +258,9 @@ def _bench_for(args, boards=("slave", "master")):
         log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None,
         boards=boards,
     )
+    if args.on_bench is not None:
+        args.on_bench(bench)
+    return bench
 
 
 def _stop_flag():
@@ -433,7 +436,9 @@ def cmd_play_check(args):
     return rc
 
 
-def main(argv=None):
+def main(argv=None, on_bench=None):
+    """scripts/board-model's commands; `on_bench(bench)`, if given, is called on the bench a
+    command builds before it runs (tools/profile.py hooks the CPUs there)."""
     ap = argparse.ArgumentParser(prog="board-model", description=__doc__)
     sub = ap.add_subparsers(dest="cmd", required=True)
     b = sub.add_parser("boot", help="run both images from reset and report")
@@ -504,4 +509,5 @@ def main(argv=None):
     _add_reset_args(pc)
     pc.set_defaults(fn=cmd_play_check)
     args = ap.parse_args(argv)
+    args.on_bench = on_bench
     return args.fn(args)

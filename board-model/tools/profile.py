@@ -4,10 +4,13 @@ code bytes executed (every basic block the CPU runs, weighted by its size in byt
 mixes 2- and 4-byte instructions, so this is a share of work, not an instruction count).
 
     python3 board-model/tools/profile.py [--ms 150] [--top 15] [--slave ELF] [--master ELF]
+    python3 board-model/tools/profile.py --play TICKS [--top 15] [-- PLAY'S OPTIONS]
 
 Both boards run from reset for --ms of simulated time, as `scripts/board-model boot` runs
-them (idle after boot: the SPI link's polls, the time driver, the executors). A unicorn block
-hook on every block makes the model about 10x slower than without it.
+them (idle after boot: the SPI link's polls, the time driver, the executors); or, with
+--play, through `scripts/board-model play-check --ticks TICKS` (boot, then host-bench's
+`play` of that stream: both boards busy relaying it), from reset to play's end. A unicorn
+block hook on every block makes the model about 3x slower than without it.
 """
 
 import argparse
@@ -21,7 +24,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from unicorn import UC_HOOK_BLOCK  # noqa: E402
 
-from f103.bench import Bench, IMAGES  # noqa: E402
+from f103.bench import Bench, IMAGES, main as bench_main  # noqa: E402
 from f103.core import Chip  # noqa: E402
 
 
@@ -44,22 +47,37 @@ def main():
     ap.add_argument("--top", type=int, default=15, help="functions listed per board")
     ap.add_argument("--slave", help="slave ELF")
     ap.add_argument("--master", help="master ELF")
+    ap.add_argument("--play", metavar="TICKS", help="profile a play of this tick stream instead")
+    ap.add_argument("play_args", nargs="*", help="more of play's options, after --")
     a = ap.parse_args()
-    bench = Bench(a.slave, a.master)
     paths = {
         "slave": a.slave or os.path.join(IMAGES, "firmware-slave"),
         "master": a.master or os.path.join(IMAGES, "firmware-master"),
     }
     bytes_at = {}
-    for name, chip in bench.boards.items():
-        seen = collections.Counter()
-        bytes_at[name] = seen
 
-        def on_block(_uc, addr, size, _ud, seen=seen):
-            seen[addr] += size
+    def hook(bench):
+        for name, chip in bench.boards.items():
+            seen = collections.Counter()
+            bytes_at[name] = seen
 
-        chip.uc.hook_add(UC_HOOK_BLOCK, on_block)
-    bench.run(int(a.ms * 1e-3 * Chip.TICK_HZ))
+            def on_block(_uc, addr, size, _ud, seen=seen):
+                seen[addr] += size
+
+            chip.uc.hook_add(UC_HOOK_BLOCK, on_block)
+
+    if a.play:
+        argv = ["play-check", "--ticks", a.play, "--slave", paths["slave"]]
+        argv += ["--master", paths["master"], "--"] + a.play_args
+        rc = bench_main(argv, on_bench=hook)
+        if rc:
+            return rc
+        what = f"from reset to the end of a play of {a.play}"
+    else:
+        bench = Bench(a.slave, a.master)
+        hook(bench)
+        bench.run(int(a.ms * 1e-3 * Chip.TICK_HZ))
+        what = f"in {a.ms:g} simulated ms"
     for name, seen in bytes_at.items():
         funcs = functions(paths[name])
         starts = [f[0] for f in funcs]
@@ -69,10 +87,10 @@ def main():
             inside = i >= 0 and addr < funcs[i][0] + funcs[i][1]
             per[funcs[i][2] if inside else hex(addr)] += n
         total = sum(per.values())
-        print(f"{name}: {total} code bytes executed in {a.ms:g} simulated ms")
+        print(f"{name}: {total} code bytes executed {what}")
         for func, n in per.most_common(a.top):
             print(f"  {100 * n / total:5.1f} %  {func[:100]}")
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
