@@ -275,4 +275,37 @@ mod tests {
         assert!((v["pose"]["orientation"]["z"].as_f64().unwrap() - 1.0).abs() < 1e-12);
         assert!(v["pose"]["orientation"]["w"].as_f64().unwrap().abs() < 1e-12);
     }
+
+    /// What a sink was given: (channel id, log time ns, message).
+    struct Recorded(std::rc::Rc<std::cell::RefCell<Vec<(usize, u64, serde_json::Value)>>>);
+
+    impl Sink for Recorded {
+        fn start(&mut self, _: &[Channel]) -> Result<()> {
+            Ok(())
+        }
+        fn message(&mut self, id: usize, t_ns: u64, data: &[u8]) -> Result<()> {
+            let v = serde_json::from_slice(data)?;
+            self.0.borrow_mut().push((id, t_ns, v));
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_message_stamped_before_the_last_is_logged_at_the_last_time() {
+        let got = std::rc::Rc::default();
+        let mut view = View::new(vec![Channel::pose("/a"), Channel::pose("/b")]);
+        view.add(Box::new(Recorded(std::rc::Rc::clone(&got))));
+        view.pose("/a", 2.0, (0.0, 0.0, 0.0)).unwrap();
+        view.pose("/b", 1.5, (1.0, 0.0, 0.0)).unwrap();
+        view.pose("/a", 2.5, (2.0, 0.0, 0.0)).unwrap();
+        let got = got.borrow();
+        let log: Vec<(usize, u64)> = got.iter().map(|(id, t, _)| (*id, *t)).collect();
+        assert_eq!(
+            log,
+            [(0, 2_000_000_000), (1, 2_000_000_000), (0, 2_500_000_000)]
+        );
+        // The message keeps its own time stamp; only the log time is held.
+        assert_eq!(got[1].2["timestamp"]["nsec"], 500_000_000);
+        assert_eq!(got[1].2["timestamp"]["sec"], 1);
+    }
 }
