@@ -10,8 +10,9 @@ Time: `now` counts ticks of 1/72 MHz. The CPU executes one instruction per HCLK 
 `cpi` (default 1.0: one instruction = one cycle; the F103 at 72 MHz with 2 flash wait states
 averages more, scripts/m3-bench suggests ~1.5), so at HSI (8 MHz, before the PLL) an
 instruction takes 9 ticks. The CPU runs in slices (`emu_start(count=N)`) that end at the next
-peripheral event or the caller's limit; peripheral registers read inside a slice see the time
-at the slice's start (an error below one slice). Interrupts are taken at slice boundaries
+peripheral event or the caller's limit. A peripheral register read or written inside a slice
+sees the time of the instruction doing it (`ucfast.counter_offset`: unicorn's own instruction
+counter; without it, the time at the slice's start). Interrupts are taken at slice boundaries
 (latency up to one slice) and at exception returns (tail-chaining).
 
 Exceptions, faults, WFE/SEV and the panic hooks: exceptions.py.
@@ -101,7 +102,7 @@ class Chip(ExceptionModel, ResetModel):
         uc.mem_write(SYSMEM_BASE, bytes(sysmem))
         uc.mem_map(0xFFFFF000, 0x1000, UC_PROT_READ | UC_PROT_EXEC)
         uc.mem_write(0xFFFFF000, b"\xfe\xe7" * 0x800)
-        self.fast = FastUc(uc)
+        self.fast = FastUc(uc, clock=self)
         self._build_peripherals()
         self._map_bus()
         uc.hook_add(UC_HOOK_INTR, self._on_intr)
@@ -474,20 +475,28 @@ class Chip(ExceptionModel, ResetModel):
             if n < 1:
                 n = 1
             self._stop_reason = None
+            fast = self.fast
+            fast.slice[0], fast.slice[1] = now, self.tpi
             try:
                 uc.emu_start(self.pc | 1, 0, count=n)
             except UcError as e:
                 self._uc_fault(e)
-            self.pc, sp = self.fast.regs(REGS_PC_SP)
+            self.pc, sp = fast.regs(REGS_PC_SP)
             if sp < self.sp_min:
                 self.sp_min = sp
             dt = n * self.tpi
-            if self._stop_reason == "sleep":
-                self.instructions += n // 2  # where in the slice it slept: unknown
-                self.busy_ticks += dt / 2
-            else:
+            if self._stop_reason is None:
                 self.instructions += n
                 self.busy_ticks += dt
+            elif fast.counter is not None:
+                # Stopped early (a sleep, a trap): the counter says how many ran, the one
+                # that stopped it included (a run stopped by its limit reads n + 1).
+                ran = min(fast.counter.value, n)
+                self.instructions += ran
+                self.busy_ticks += ran * self.tpi
+            else:
+                self.instructions += n // 2  # where in the slice it stopped: unknown
+                self.busy_ticks += dt / 2
             self.now = max(limit, int(now + dt)) if self._stop_reason is None else limit
             if self.pending_reset:
                 self.system_reset(self.pending_reset)

@@ -114,6 +114,9 @@ class ExceptionModel:
         self.uc.ctl_remove_cache(addr - FLASH_BASE, addr - FLASH_BASE + 4)
 
     def _on_intr(self, uc, intno, _ud):
+        fast = self.fast
+        if fast.clock is not None:  # the time of this instruction (ucfast.counter_offset)
+            self.now = int(fast.slice[0] + (fast.counter.value - 1) * fast.slice[1])
         if intno == 7:  # BKPT: one of the model's traps?
             addr = self.fast.reg(UC_ARM_REG_PC) & ~1
             if addr < FLASH_SIZE:
@@ -127,7 +130,6 @@ class ExceptionModel:
             self._fault_pending = ("UsageFault", f"CPU exception {intno}")
             uc.emu_stop()
             return
-        fast = self.fast
         exc_return, sp = fast.regs(REGS_PC_SP)
         exc_return |= 1
         ret = self.ipsr

@@ -8,13 +8,65 @@ raises it afterwards.
 """
 
 import ctypes
+import struct
 
-from unicorn import UcError
+from unicorn import Uc, UcError, UC_ARCH_ARM, UC_MODE_THUMB, UC_MODE_MCLASS
+from unicorn.arm_const import UC_ARM_REG_R0, UC_CPU_ARM_CORTEX_M3
 from unicorn.unicorn_py3.unicorn import uclib, MMIO_READ_CFUNC, MMIO_WRITE_CFUNC
+
+_COUNTER_OFFSET = []  # found once per process: [offset or None]
+
+
+def _handle(uc):
+    h = uc._uch
+    return h.value if hasattr(h, "value") else h
+
+
+def counter_offset():
+    """Where unicorn keeps its instruction counter for `emu_start(count=N)`, as a byte offset
+    into the engine's handle; None if it cannot be found.
+
+    unicorn 2 counts the instructions of a counted run in a 64-bit field of its handle (set to
+    0 by `emu_start`, one more before each instruction; the limit N in the next field), but no
+    API reads it. Found here by running a loop of a known length on a scratch engine, counted
+    against a limit it does not reach, and looking for the pair (instructions run, limit) in
+    the handle; then checked on a second run of another length. The model then knows, inside a
+    slice, which instruction is running: its peripherals see the time of each access, and a
+    slice that stops early (a sleep) counts the instructions it ran."""
+    if _COUNTER_OFFSET:
+        return _COUNTER_OFFSET[0]
+    found = None
+    try:
+        uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M3)
+        uc.mem_map(0x08000000, 0x1000)
+        # 1: subs r0, #1 ; bne 1b ; b .  (the run stops at the `b .`, its `until` address)
+        uc.mem_write(0x08000000, bytes.fromhex("0138" "fdd1" "fee7"))
+        h, limit = _handle(uc), 99_991
+
+        def run(loops):
+            uc.reg_write(UC_ARM_REG_R0, loops)
+            uc.emu_start(0x08000001, 0x08000004, count=limit)
+            return ctypes.string_at(h, 0x4000)
+
+        raw = run(300)
+        want = struct.pack("<QQ", 600, limit)
+        at = raw.find(want)
+        while at >= 0 and at % 8:
+            at = raw.find(want, at + 1)
+        if at >= 0 and run(421)[at : at + 16] == struct.pack("<QQ", 842, limit):
+            found = at
+    except Exception:  # noqa: BLE001 (another engine build: the model runs without it)
+        found = None
+    _COUNTER_OFFSET.append(found)
+    return found
 
 
 class FastUc:
-    def __init__(self, uc):
+    def __init__(self, uc, clock=None):
+        """`clock`: an object whose `now` (ticks) is set before each peripheral access to the
+        time of the instruction making it, from `slice` = [tick of the slice's first
+        instruction, ticks per instruction], which the owner sets before each `emu_start`."""
         self.uc = uc
         self.h = uc._uch
         self._buf = ctypes.c_uint32()
@@ -22,6 +74,11 @@ class FastUc:
         self._keep = []  # the callbacks must outlive the mapping
         self._batches = {}
         self._mem = ctypes.create_string_buffer(256)
+        off = counter_offset()
+        # The instruction running (1 for a slice's first), or None without the counter.
+        self.counter = None if off is None else ctypes.c_uint64.from_address(_handle(uc) + off)
+        self.clock = clock if self.counter is not None else None
+        self.slice = [0, 1.0]
 
     def reg(self, reg_id):
         """A 32-bit core register."""
@@ -73,9 +130,11 @@ class FastUc:
 
     def mmio_map(self, address, size, read, write):
         """`read(offset, size) -> value`, `write(offset, size, value)`, offsets from `address`."""
-        uc = self.uc
+        uc, clock, counter, slice_ = self.uc, self.clock, self.counter, self.slice
 
         def on_read(_h, off, size_, _ud):
+            if clock is not None:
+                clock.now = int(slice_[0] + (counter.value - 1) * slice_[1])
             try:
                 return read(off, size_)
             except BaseException as e:  # noqa: B036 (stop the CPU, re-raise after)
@@ -85,6 +144,8 @@ class FastUc:
                 return 0
 
         def on_write(_h, off, size_, value, _ud):
+            if clock is not None:
+                clock.now = int(slice_[0] + (counter.value - 1) * slice_[1])
             try:
                 write(off, size_, value)
             except BaseException as e:  # noqa: B036
