@@ -228,3 +228,38 @@ class TestUsart(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class TestInstructionClock(unittest.TestCase):
+    # ucfast.counter_offset: unicorn's own count of a counted run, read inside a slice.
+    def test_an_access_sees_its_instructions_time(self):
+        from unicorn import Uc, UC_ARCH_ARM, UC_MODE_THUMB, UC_MODE_MCLASS
+        from unicorn.arm_const import UC_ARM_REG_R2, UC_CPU_ARM_CORTEX_M3
+
+        from f103.ucfast import FastUc, counter_offset
+
+        self.assertIsNotNone(counter_offset(), "unicorn 2.1.4's counter not found")
+        uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M3)
+        uc.mem_map(0x08000000, 0x1000)
+        # movs r0,#1 ; movs r0,#2 ; ldr r3,[r2] ; movs r0,#3 ; str r3,[r2] ; b .
+        uc.mem_write(0x08000000, bytes.fromhex("0120" "0220" "1368" "0320" "1360" "fee7"))
+
+        class Clock:
+            now = 0
+
+        clock, seen = Clock(), []
+        fast = FastUc(uc, clock=clock)
+        fast.mmio_map(
+            0x40000000,
+            0x400,
+            lambda off, size: seen.append(("read", clock.now)) or 0,
+            lambda off, size, value: seen.append(("write", clock.now)),
+        )
+        uc.reg_write(UC_ARM_REG_R2, 0x40000000)
+        fast.slice[0], fast.slice[1] = 1000, 9.0  # at HSI: 9 ticks an instruction
+        uc.emu_start(0x08000001, 0, count=8)
+        # the load is the third instruction, the store the fifth
+        self.assertEqual(seen, [("read", 1000 + 2 * 9), ("write", 1000 + 4 * 9)])
+        # a run stopped by its limit reads one more than it ran
+        self.assertEqual(fast.counter.value, 9)
