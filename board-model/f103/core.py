@@ -13,7 +13,8 @@ instruction takes 9 ticks. The CPU runs in slices (`emu_start(count=N)`) that en
 peripheral event or the caller's limit. A peripheral register read or written inside a slice
 sees the time of the instruction doing it (`ucfast.counter_offset`: unicorn's own instruction
 counter; without it, the time at the slice's start). Interrupts are taken at slice boundaries
-(latency up to one slice) and at exception returns (tail-chaining).
+(latency up to one slice; one that a register access raises ends the slice after it,
+`irq_changed`) and at exception returns (tail-chaining).
 
 Exceptions, faults, WFE/SEV and the panic hooks: exceptions.py.
 """
@@ -46,7 +47,7 @@ from unicorn.arm_const import (
 from . import nvic as nv
 from .crc import Crc, crc32_word_fast
 from .dma import Dma
-from .exceptions import ExceptionModel, REGS_PC_SP
+from .exceptions import ExceptionModel, REGS_MASKS, REGS_PC_SP
 from .exti import Exti
 from .gpio import Afio, Gpio
 from .memmap import (
@@ -102,6 +103,7 @@ class Chip(ExceptionModel, ResetModel):
         uc.mem_write(SYSMEM_BASE, bytes(sysmem))
         uc.mem_map(0xFFFFF000, 0x1000, UC_PROT_READ | UC_PROT_EXEC)
         uc.mem_write(0xFFFFF000, b"\xfe\xe7" * 0x800)
+        self._in_slice = False
         self.fast = FastUc(uc, clock=self)
         self._build_peripherals()
         self._map_bus()
@@ -424,7 +426,19 @@ class Chip(ExceptionModel, ResetModel):
         self._next_cache = None
 
     def irq_changed(self):
-        pass
+        """An interrupt was pended. Inside a slice (a register access made it: a write that
+        completed a DMA transfer, set a pending bit, ...), one the CPU can take now ends the
+        slice after the running instruction, so it is taken at its instruction, not at the
+        slice's end. (One pended while masked still waits for the slice's end: the CPU
+        unmasks without a register access.)"""
+        fast = self.fast
+        if not self._in_slice or fast.limit is None or not self.nvic.pending:
+            return
+        if self.nvic.takeable(0, 0) is None:
+            return
+        primask, basepri = fast.regs(REGS_MASKS)
+        if self.nvic.takeable(primask, basepri) is not None:
+            fast.limit.value = fast.counter.value
 
     def next_event(self):
         if self._next_cache is None:
@@ -477,13 +491,21 @@ class Chip(ExceptionModel, ResetModel):
             self._stop_reason = None
             fast = self.fast
             fast.slice[0], fast.slice[1] = now, self.tpi
+            self._in_slice = True
             try:
                 uc.emu_start(self.pc | 1, 0, count=n)
             except UcError as e:
                 self._uc_fault(e)
+            self._in_slice = False
             self.pc, sp = fast.regs(REGS_PC_SP)
             if sp < self.sp_min:
                 self.sp_min = sp
+            if self._stop_reason is None and fast.counter is not None:
+                # Its limit ended it (a run reads one past its last instruction): n, or fewer
+                # when an interrupt to take cut it (irq_changed).
+                n = max(0, min(fast.counter.value - 1, n))
+                if n < int((limit - now) / self.tpi):
+                    limit = int(now + n * self.tpi)
             dt = n * self.tpi
             if self._stop_reason is None:
                 self.instructions += n

@@ -170,6 +170,7 @@ class Scs(Peripheral):
         self.lines[irq] = level
         if level and not old:
             self.pending.add(16 + irq)
+            self.chip.irq_changed()
 
     def pend(self, exc):
         self.pending.add(exc)

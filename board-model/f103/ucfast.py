@@ -32,7 +32,9 @@ def counter_offset():
     against a limit it does not reach, and looking for the pair (instructions run, limit) in
     the handle; then checked on a second run of another length. The model then knows, inside a
     slice, which instruction is running: its peripherals see the time of each access, and a
-    slice that stops early (a sleep) counts the instructions it ran."""
+    slice that stops early (a sleep) counts the instructions it ran; and lowering the limit
+    from inside a register access ends the run right after the instruction making it (with
+    nothing run twice: `emu_stop` there makes unicorn run that instruction again)."""
     if _COUNTER_OFFSET:
         return _COUNTER_OFFSET[0]
     found = None
@@ -75,8 +77,10 @@ class FastUc:
         self._batches = {}
         self._mem = ctypes.create_string_buffer(256)
         off = counter_offset()
-        # The instruction running (1 for a slice's first), or None without the counter.
+        # The instruction running (1 for a slice's first), or None without the counter; and the
+        # run's limit next to it (lowered to end a run after the running instruction).
         self.counter = None if off is None else ctypes.c_uint64.from_address(_handle(uc) + off)
+        self.limit = None if off is None else ctypes.c_uint64.from_address(_handle(uc) + off + 8)
         self.clock = clock if self.counter is not None else None
         self.slice = [0, 1.0]
 

@@ -263,3 +263,30 @@ class TestInstructionClock(unittest.TestCase):
         self.assertEqual(seen, [("read", 1000 + 2 * 9), ("write", 1000 + 4 * 9)])
         # a run stopped by its limit reads one more than it ran
         self.assertEqual(fast.counter.value, 9)
+
+    def test_a_lowered_limit_ends_the_run_after_the_access(self):
+        # what Chip.irq_changed does when a register write raises an interrupt to take
+        from unicorn import Uc, UC_ARCH_ARM, UC_MODE_THUMB, UC_MODE_MCLASS
+        from unicorn.arm_const import UC_ARM_REG_PC, UC_ARM_REG_R0, UC_ARM_REG_R2
+        from unicorn.arm_const import UC_CPU_ARM_CORTEX_M3
+
+        from f103.ucfast import FastUc
+
+        uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M3)
+        uc.mem_map(0x08000000, 0x1000)
+        # movs r0,#1 ; str r3,[r2] ; movs r0,#2 ; movs r0,#3 ; b .
+        uc.mem_write(0x08000000, bytes.fromhex("0120" "1360" "0220" "0320" "fee7"))
+        fast, writes = FastUc(uc), []
+
+        def write(off, size, value):
+            writes.append(off)
+            fast.limit.value = fast.counter.value
+
+        fast.mmio_map(0x40000000, 0x400, lambda off, size: 0, write)
+        uc.reg_write(UC_ARM_REG_R2, 0x40000000)
+        uc.emu_start(0x08000001, 0, count=100)
+        self.assertEqual(writes, [0])  # the store ran once, not again
+        self.assertEqual(uc.reg_read(UC_ARM_REG_PC), 0x08000004)  # stopped after it
+        self.assertEqual(uc.reg_read(UC_ARM_REG_R0), 1)
+        self.assertEqual(fast.counter.value - 1, 2)  # two instructions ran
