@@ -2,8 +2,8 @@
 //! `firmware_master` library.
 //!
 //! On the board, `board::init` builds the hardware ports (SPI link to the slave, serial link to
-//! the host, motor drivers) and the four tasks of `firmware_master::tasks` run on them. On the host this
-//! binary is only a signpost: the same library runs inside the emulator instead.
+//! the host, motor drivers) and the four tasks of `firmware_master::tasks` run on them. On the
+//! host this binary is only a signpost: the same library runs inside the emulator instead.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
