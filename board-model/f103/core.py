@@ -329,6 +329,10 @@ class Chip(ExceptionModel, ResetModel):
             p.sync(self.now)
         self._clock_update()
         self.reschedule()
+        if self._in_slice and self.fast.limit is not None:
+            # The slice's instructions were timed at the old rate: end it after this one, so
+            # the next runs at the new rate (run_until accounts for it at the old).
+            self.fast.limit.value = self.fast.counter.value
 
     def ticks_per_hclk(self):
         return self.TICK_HZ // self.hclk
@@ -490,23 +494,26 @@ class Chip(ExceptionModel, ResetModel):
                 n = 1
             self._stop_reason = None
             fast = self.fast
-            fast.slice[0], fast.slice[1] = now, self.tpi
+            # The slice's rate: a clock switch inside it changes self.tpi (and ends it).
+            tpi = self.tpi
+            fast.slice[0], fast.slice[1] = now, tpi
             self._in_slice = True
             try:
                 uc.emu_start(self.pc | 1, 0, count=n)
             except UcError as e:
                 self._uc_fault(e)
-            self._in_slice = False
+            finally:
+                self._in_slice = False
             self.pc, sp = fast.regs(REGS_PC_SP)
             if sp < self.sp_min:
                 self.sp_min = sp
             if self._stop_reason is None and fast.counter is not None:
                 # Its limit ended it (a run reads one past its last instruction): n, or fewer
-                # when an interrupt to take cut it (irq_changed).
-                n = max(0, min(fast.counter.value - 1, n))
-                if n < int((limit - now) / self.tpi):
-                    limit = int(now + n * self.tpi)
-            dt = n * self.tpi
+                # when something cut it (irq_changed, clock_changed).
+                ran = max(0, min(fast.counter.value - 1, n))
+                if ran < n:
+                    n, limit = ran, int(now + ran * tpi)
+            dt = n * tpi
             if self._stop_reason is None:
                 self.instructions += n
                 self.busy_ticks += dt
@@ -515,7 +522,7 @@ class Chip(ExceptionModel, ResetModel):
                 # that stopped it included (a run stopped by its limit reads n + 1).
                 ran = min(fast.counter.value, n)
                 self.instructions += ran
-                self.busy_ticks += ran * self.tpi
+                self.busy_ticks += ran * tpi
             else:
                 self.instructions += n // 2  # where in the slice it stopped: unknown
                 self.busy_ticks += dt / 2

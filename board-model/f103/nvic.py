@@ -174,6 +174,7 @@ class Scs(Peripheral):
 
     def pend(self, exc):
         self.pending.add(exc)
+        self.chip.irq_changed()
 
     def activate(self, exc):
         self.pending.discard(exc)

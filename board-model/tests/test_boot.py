@@ -44,6 +44,31 @@ class TestBoot(unittest.TestCase):
         self.assertGreater(m.spi1.bytes, 128 * 10)  # a frame every 2 ms
 
 
+@needs_images
+class TestClock(unittest.TestCase):
+    def test_a_boards_time_never_goes_back(self):
+        """Through boot (the switch to the PLL inside a slice: 9 ticks an instruction, then 1)
+        and a slave reset, every time a board is given is at or after the one before."""
+        back = []
+
+        def get(chip):
+            return chip.__dict__.get("_now_checked", 0)
+
+        def put(chip, t):
+            if t < get(chip):
+                back.append((chip.name, get(chip), t))
+            chip.__dict__["_now_checked"] = t
+
+        Chip.now = property(get, put)
+        try:
+            bench = Bench(SLAVE, MASTER)
+            bench.reset_at("slave", 0.01, 5)
+            bench.run(int(0.03 * Chip.TICK_HZ))
+        finally:
+            del Chip.now
+        self.assertEqual(back, [])
+
+
 @needs_slave
 class TestPanicTrap(unittest.TestCase):
     def test_a_panic_is_recorded_and_halts_the_board(self):

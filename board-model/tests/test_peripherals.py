@@ -226,9 +226,6 @@ class TestUsart(unittest.TestCase):
         self.assertFalse(u.read(0x00) & 0x10)  # cleared by SR read then DR read
 
 
-if __name__ == "__main__":
-    unittest.main()
-
 
 class TestInstructionClock(unittest.TestCase):
     # ucfast.counter_offset: unicorn's own count of a counted run, read inside a slice.
@@ -290,3 +287,7 @@ class TestInstructionClock(unittest.TestCase):
         self.assertEqual(uc.reg_read(UC_ARM_REG_PC), 0x08000004)  # stopped after it
         self.assertEqual(uc.reg_read(UC_ARM_REG_R0), 1)
         self.assertEqual(fast.counter.value - 1, 2)  # two instructions ran
+
+
+if __name__ == "__main__":
+    unittest.main()
