@@ -87,7 +87,10 @@ mod firmware {
             .unwrap_or_else(|| defmt::panic!("main ran twice"));
         let mut motors = board.motors;
         if !tasks::start(&mut motors, shared, config) {
-            // An impossible geometry is a build-time mistake: no task runs, the motors stay off.
+            // An impossible geometry is a build-time mistake: no task runs, and the motors
+            // stay off. Forgotten, not dropped: a dropped pin goes to analog input and would
+            // leave the drivers' enable (PB15, low for off) floating.
+            core::mem::forget(motors);
             return;
         }
         let running = bluepill::already_running;
