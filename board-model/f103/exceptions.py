@@ -116,7 +116,7 @@ class ExceptionModel:
     def _on_intr(self, uc, intno, _ud):
         fast = self.fast
         if fast.clock is not None:  # the time of this instruction (ucfast.counter_offset)
-            self.now = int(fast.slice[0] + (fast.counter.value - 1) * fast.slice[1])
+            self.now = fast.instruction_time()
         if intno == 7:  # BKPT: one of the model's traps?
             addr = self.fast.reg(UC_ARM_REG_PC) & ~1
             if addr < FLASH_SIZE:

@@ -93,6 +93,11 @@ class FastUc:
         self.clock = clock if self.counter is not None else None
         self.slice = [0, 1.0]
 
+    def instruction_time(self):
+        """The tick of the instruction running now (`clock` set: inside a slice). The MMIO
+        callbacks below compute the same inline: they run ~590 000 times a simulated second."""
+        return int(self.slice[0] + (self.counter.value - 1) * self.slice[1])
+
     def reg(self, reg_id):
         """A 32-bit core register."""
         uclib.uc_reg_read(self.h, reg_id, self._ref)

@@ -140,21 +140,29 @@ pub type Track = Vec<(f64, Pose2, Pose2)>;
 /// Each method's scored track `(t s, estimate, truth)` as messages, row by row across the
 /// methods so the log times go forward; the truth from the first method's rows.
 pub fn replay_tracks(view: &mut View, tracks: &[(String, Track)]) -> Result<()> {
+    if !view.is_on() {
+        return Ok(());
+    }
     let si = |p: &Pose2| (p.x, p.y, p.theta);
+    let topics: Vec<(String, String)> = tracks
+        .iter()
+        .map(|(m, _)| {
+            (
+                format!("/odometry/{m}/pose"),
+                format!("/odometry/{m}/error"),
+            )
+        })
+        .collect();
     let rows = tracks.iter().map(|(_, t)| t.len()).max().unwrap_or(0);
     for i in 0..rows {
         if let Some((t, _, truth)) = tracks[0].1.get(i) {
             view.transform("/tf", "robot", *t, si(truth))?;
             view.pose("/truth/pose", *t, si(truth))?;
         }
-        for (name, track) in tracks {
+        for ((_, track), (pose, error)) in tracks.iter().zip(&topics) {
             if let Some((t, est, truth)) = track.get(i) {
-                view.pose(&format!("/odometry/{name}/pose"), *t, si(est))?;
-                view.json(
-                    &format!("/odometry/{name}/error"),
-                    *t,
-                    &pose_error(si(est), si(truth)),
-                )?;
+                view.pose(pose, *t, si(est))?;
+                view.json(error, *t, &pose_error(si(est), si(truth)))?;
             }
         }
     }
