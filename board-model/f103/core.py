@@ -44,6 +44,7 @@ from unicorn.arm_const import (
     UC_ARM_REG_BASEPRI,
 )
 
+from . import native
 from . import nvic as nv
 from .crc import Crc, crc32_word_fast
 from .dma import Dma
@@ -200,8 +201,14 @@ class Chip(ExceptionModel, ResetModel):
         """Each modelled peripheral on an MMIO range of its own, with callbacks bound to it (no
         look-up per access: the images make hundreds of thousands a second); the reserved pages
         between them, and the private peripheral bus, on the generic handlers."""
+        self.native_pages = []  # (peripheral, its native.Page)
         for p in {id(p): p for p in self.ptab.values()}.values():
-            self.fast.mmio_map(p.base, p.size, self._reader(p), self._writer(p))
+            page = None
+            if self.fast.native is not None and hasattr(p, "attach_native"):
+                page = native.Page()
+                p.attach_native(page)
+                self.native_pages.append((p, page))
+            self.fast.mmio_map(p.base, p.size, self._reader(p), self._writer(p), page)
         npages = PERIPH_SIZE >> 10
         page = 0
         while page < npages:
@@ -323,6 +330,14 @@ class Chip(ExceptionModel, ResetModel):
         self.pclk = snap["pclk"]
         self.timclk = snap["timclk"]
         self.tpi = self.TICK_HZ / self.hclk * self.cpi  # ticks per instruction
+        self.gates_changed()
+        for p in (self.tim1, self.tim2, self.tim3, self.tim4):
+            p._publish()  # its clock's divider
+
+    def gates_changed(self):
+        """An RCC clock enable changed: the native fast path answers only while one is on."""
+        for p, page in getattr(self, "native_pages", ()):
+            page.gate_on = 1 if self.clock_on(p) else 0
 
     def clock_changed(self):
         for p in self.timed:
@@ -496,7 +511,7 @@ class Chip(ExceptionModel, ResetModel):
             fast = self.fast
             # The slice's rate: a clock switch inside it changes self.tpi (and ends it).
             tpi = self.tpi
-            fast.slice[0], fast.slice[1] = now, tpi
+            fast.set_slice(now, tpi)
             self._in_slice = True
             try:
                 uc.emu_start(self.pc | 1, 0, count=n)

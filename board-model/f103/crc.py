@@ -7,6 +7,7 @@ Both images run their CRC-32 on the unit, a word per DR write (tens of thousands
 while the boards talk), so a word is computed with four table look-ups ("slicing by 4":
 TABLES[k][b] is byte b followed by k zero bytes) instead of 32 shift steps."""
 
+from . import native
 from .periph import Peripheral
 
 POLY = 0x04C11DB7
@@ -43,11 +44,27 @@ def crc32_word_fast(crc, word):
 
 
 class Crc(Peripheral):
+    """DR and IDR live in `regs`: a list, or the native fast path's registers (which then
+    computes the word writes to DR itself)."""
+
     name = "CRC"
+    regs = None
 
     def reset(self):
+        if self.regs is None:
+            self.regs = [0, 0]
         self.dr = 0xFFFFFFFF
         self.idr = 0
+
+    def attach_native(self, page):
+        page.regs[0], page.regs[1] = self.dr, self.idr
+        self.regs = page.regs
+        page.read_kind[0] = page.read_kind[1] = native.MIRROR
+        page.write_kind[0] = native.CRC_DR
+        page.write_kind[2] = native.CRC_CR
+
+    dr = property(lambda self: self.regs[0], lambda self, v: self.regs.__setitem__(0, v))
+    idr = property(lambda self: self.regs[1], lambda self, v: self.regs.__setitem__(1, v))
 
     def read(self, off):
         if off == 0x00:

@@ -9,6 +9,7 @@ sets TEIF and disables the channel (§13.3.5). Transfers take no simulated time 
 priorities between channels are not modelled (requests are served in channel order).
 """
 
+from . import native
 from .periph import Peripheral
 
 SIZES = [1, 2, 4, 4]
@@ -43,6 +44,24 @@ class Dma(Peripheral):
         self.transfers = 0
         self.active = []  # enabled channels, for kick()
         self._levels = [False] * 8
+        self._publish()
+
+    # --- the native fast path (native.py) ------------------------------------------------
+    _page = None
+
+    def attach_native(self, page):
+        """CCRx read natively, as `_publish` last wrote them."""
+        self._page = page
+        for n in range(1, 8):
+            page.read_kind[(0x08 + 20 * (n - 1)) >> 2] = native.MIRROR
+        self._publish()
+
+    def _publish(self):
+        """After anything that changes a CCR."""
+        pg = self._page
+        if pg is not None:
+            for n, c in self.ch.items():
+                pg.regs[(0x08 + 20 * (n - 1)) >> 2] = c.ccr
 
     def connect(self, n, periph, key):
         self.sources[n].append((periph, key))
@@ -91,6 +110,7 @@ class Dma(Peripheral):
             chip.log(f"DMA1 channel {c.n}: transfer error ({e}) at p={c.p:#x} m={c.m:#x}")
             self._flag(c.n, 8)
             c.ccr &= ~1
+            self._publish()
             self.active = [ch for ch in self.ch.values() if ch.ccr & 1]
             self._irq()
             return
@@ -202,6 +222,7 @@ class Dma(Peripheral):
                 c.p, c.m = c.cpar, c.cmar
             elif was and not c.ccr & 1:
                 c.cndtr = c.remaining
+            self._publish()
             self.active = [ch for ch in self.ch.values() if ch.ccr & 1]
             self._irq()
             self.kick()

@@ -15,6 +15,7 @@ levels, slave modes other than encoder, master/slave triggers, DMA requests from
 repetition counter and break (TIM1).
 """
 
+from . import native
 from .periph import Peripheral
 
 M16 = 0xFFFF
@@ -43,6 +44,29 @@ class Timer(Peripheral):
         self.rcr = self.bdtr = self.dcr = 0
         self.anchor = self.chip.now if hasattr(self.chip, "now") else 0
         self._irq()
+        self._publish()
+
+    # --- the native fast path (native.py) ------------------------------------------------
+    _page = None
+
+    def attach_native(self, page):
+        """CNT and DIER read natively: CNT from what `_publish` tells it, DIER as published."""
+        self._page = page
+        page.read_kind[0x24 >> 2] = native.TIM_CNT
+        page.read_kind[0x0C >> 2] = native.MIRROR
+        self._publish()
+
+    def _publish(self):
+        """Tell the fast path the counter's state: after anything that changes it."""
+        pg = self._page
+        if pg is None:
+            return
+        pg.regs[0x0C >> 2] = self.dier
+        pg.tim_cr1, pg.tim_smcr, pg.tim_cnt, pg.tim_anchor = self.cr1, self.smcr, self.cnt, self.anchor
+        pg.tim_psc, pg.tim_psc_active = self.psc, self.psc_active
+        pg.tim_arr, pg.tim_arr_active = self.arr, self.arr_active
+        timclk = getattr(self.chip, "timclk", None)
+        pg.tim_div = self.chip.TICK_HZ // timclk[self.apb] if timclk else 0
 
     # --- clocking --------------------------------------------------------------------------
     def ticks_per_count(self):
@@ -127,6 +151,7 @@ class Timer(Peripheral):
                 self._advance(n)
                 self.anchor += n * per
                 n = 0
+        self._publish()
         if self.sr != sr:
             self._irq()
             self.chip.reschedule()
@@ -208,6 +233,7 @@ class Timer(Peripheral):
         for i in range(4):
             if self.cnt == self.ccr_active[i] and i >= 2:
                 self.sr |= 2 << i
+        self._publish()
         self._irq()
 
     # --- registers -----------------------------------------------------------------------
@@ -302,5 +328,6 @@ class Timer(Peripheral):
             self.bdtr = v
         elif off == 0x48:
             self.dcr = v
+        self._publish()
         self._irq()
         self.chip.reschedule()

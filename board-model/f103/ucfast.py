@@ -15,6 +15,8 @@ from unicorn import Uc, UcError, UC_ARCH_ARM, UC_MODE_THUMB, UC_MODE_MCLASS
 from unicorn.arm_const import UC_ARM_REG_R0, UC_CPU_ARM_CORTEX_M3
 from unicorn.unicorn_py3.unicorn import uclib, MMIO_READ_CFUNC, MMIO_WRITE_CFUNC
 
+from . import native
+
 _COUNTER_OFFSET = []  # found once per process: [offset or None]
 
 
@@ -92,6 +94,18 @@ class FastUc:
         self.limit = None if off is None else ctypes.c_uint64.from_address(_handle(uc) + off + 8)
         self.clock = clock if self.counter is not None else None
         self.slice = [0, 1.0]
+        # the same, for the native fast path (native.py), which needs the counter too
+        self.native = native.library() if self.counter is not None else None
+        self.native_clock = native.Clock(
+            ctypes.addressof(self.counter) if self.counter is not None else None, 0, 1.0
+        )
+
+    def set_slice(self, start, tpi):
+        """Before each `emu_start`: the tick of the slice's first instruction, ticks per
+        instruction."""
+        self.slice[0], self.slice[1] = start, tpi
+        nc = self.native_clock
+        nc.start, nc.tpi = start, tpi
 
     def instruction_time(self):
         """The tick of the instruction running now (`clock` set: inside a slice). The MMIO
@@ -146,8 +160,10 @@ class FastUc:
         if status != 0:
             raise UcError(status)
 
-    def mmio_map(self, address, size, read, write):
-        """`read(offset, size) -> value`, `write(offset, size, value)`, offsets from `address`."""
+    def mmio_map(self, address, size, read, write, page=None):
+        """`read(offset, size) -> value`, `write(offset, size, value)`, offsets from `address`.
+        With `page` (a native.Page) and the native fast path loaded, the range is mapped to the
+        fast path, which calls `read`/`write` for what it does not answer itself."""
         uc, clock, counter, slice_ = self.uc, self.clock, self.counter, self.slice
 
         def on_read(_h, off, size_, _ud):
@@ -173,6 +189,14 @@ class FastUc:
 
         r, w = MMIO_READ_CFUNC(on_read), MMIO_WRITE_CFUNC(on_write)
         self._keep.append((r, w))
-        status = uclib.uc_mmio_map(self.h, address, size, r, None, w, None)
+        if page is not None and self.native is not None:
+            page.slow_read = ctypes.cast(r, ctypes.c_void_p).value
+            page.slow_write = ctypes.cast(w, ctypes.c_void_p).value
+            page.clock = ctypes.addressof(self.native_clock)
+            self._keep.append(page)
+            fr, fw = native.functions(self.native)
+            status = uclib.uc_mmio_map(self.h, address, size, fr, ctypes.addressof(page), fw, ctypes.addressof(page))
+        else:
+            status = uclib.uc_mmio_map(self.h, address, size, r, None, w, None)
         if status != 0:
             raise UcError(status)

@@ -4,11 +4,14 @@ Uses the images in target/thumbv7m-none-eabi/release (build them first:
 `cargo build -p firmware-slave -p firmware-master --release --target thumbv7m-none-eabi`);
 skipped when they are missing. BOARD_MODEL_SLAVE / BOARD_MODEL_MASTER name other images."""
 
+import json
 import os
+import subprocess
 import sys
 import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+MODEL_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 from support import MASTER, SLAVE, needs_images, needs_slave  # noqa: E402
 
@@ -67,6 +70,47 @@ class TestClock(unittest.TestCase):
         finally:
             del Chip.now
         self.assertEqual(back, [])
+
+
+# Both boards from reset, the slave's wheels turning: what the native fast path must not change.
+SAME_RUN = """
+import hashlib, json, sys
+sys.path.insert(0, sys.argv[1])
+from f103 import edges, native
+from f103.bench import Bench
+from f103.core import Chip
+bench = Bench(sys.argv[2], sys.argv[3])
+rows, hold = edges.drive_spec("PA0,PA1,0.004,600,40000")
+edges.EdgeDriver(bench.boards["slave"], rows, hold)
+bench.run(int(0.03 * Chip.TICK_HZ))
+out = {"native": native.library() is not None}
+for name, c in bench.boards.items():
+    ram = hashlib.sha256(bytes(c.uc.mem_read(0x20000000, 0x5000))).hexdigest()
+    out[name] = [c.instructions, c.exceptions, c.sleeps, c.spi1.bytes, c.tim2.cnt, ram]
+print(json.dumps(out))
+"""
+
+
+@needs_images
+class TestNativeFastPath(unittest.TestCase):
+    def test_python_alone_and_the_fast_path_agree_to_the_instruction(self):
+        """The same 30 ms (boot, the SPI link, 600 encoder counts on the slave) with the
+        native fast path and without: the same instructions, exceptions, sleeps, SPI bytes,
+        encoder count, and every byte of both boards' RAM."""
+        runs = {}
+        for flag in ("0", "1"):
+            out = subprocess.run(
+                [sys.executable, "-c", SAME_RUN, MODEL_DIR, SLAVE, MASTER],
+                env={**os.environ, "BOARD_MODEL_NATIVE": flag},
+                capture_output=True,
+                text=True,
+                check=True,
+            ).stdout
+            runs[flag] = json.loads(out)
+        self.assertFalse(runs["0"].pop("native"))
+        self.assertTrue(runs["1"].pop("native"), "the fast path did not load (is cc there?)")
+        self.assertEqual(runs["0"], runs["1"])
+        self.assertEqual(runs["1"]["slave"][4], 600)  # TIM2 counted every edge
 
 
 @needs_slave
