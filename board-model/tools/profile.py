@@ -5,12 +5,17 @@ mixes 2- and 4-byte instructions, so this is a share of work, not an instruction
 
     python3 board-model/tools/profile.py [--ms 150] [--top 15] [--slave ELF] [--master ELF]
     python3 board-model/tools/profile.py --play TICKS [--top 15] [-- PLAY'S OPTIONS]
+    python3 board-model/tools/profile.py --wall [--play TICKS | --ms 150]
 
 Both boards run from reset for --ms of simulated time, as `scripts/board-model boot` runs
 them (idle after boot: the SPI link's polls, the time driver, the executors); or, with
 --play, through `scripts/board-model play-check --ticks TICKS` (boot, then host-bench's
 `play` of that stream: both boards busy relaying it), from reset to play's end. A unicorn
 block hook on every block makes the model about 3x slower than without it.
+
+--wall instead splits the model's own wall time (no block hook): inside unicorn (emulating,
+and the native fast path's register accesses), inside the Python peripheral callbacks (with
+ctypes' way in and out), and the rest (the lock-step loop, events, interrupts, the pty).
 """
 
 import argparse
@@ -19,6 +24,7 @@ import collections
 import os
 import subprocess
 import sys
+import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -26,6 +32,7 @@ from unicorn import UC_HOOK_BLOCK  # noqa: E402
 
 from f103.bench import Bench, IMAGES, main as bench_main  # noqa: E402
 from f103.core import Chip  # noqa: E402
+from f103 import ucfast  # noqa: E402
 
 
 def functions(path):
@@ -48,8 +55,11 @@ def main():
     ap.add_argument("--slave", help="slave ELF")
     ap.add_argument("--master", help="master ELF")
     ap.add_argument("--play", metavar="TICKS", help="profile a play of this tick stream instead")
+    ap.add_argument("--wall", action="store_true", help="split the model's wall time instead")
     ap.add_argument("play_args", nargs="*", help="more of play's options, after --")
     a = ap.parse_args()
+    if a.wall:
+        return wall_split(a)
     paths = {
         "slave": a.slave or os.path.join(IMAGES, "firmware-slave"),
         "master": a.master or os.path.join(IMAGES, "firmware-master"),
@@ -90,6 +100,80 @@ def main():
         print(f"{name}: {total} code bytes executed {what}")
         for func, n in per.most_common(a.top):
             print(f"  {100 * n / total:5.1f} %  {func[:100]}")
+
+
+def wall_split(a):
+    """--wall: time inside `emu_start` and inside the Python callbacks, measured around each."""
+    clock = time.perf_counter
+    t = {"emu": 0.0, "slices": 0, "cb": 0.0, "calls": 0}
+    mmio_map = ucfast.FastUc.mmio_map
+
+    def timed_map(self, address, size, read, write, page=None):
+        def r(off, size_):
+            t0 = clock()
+            try:
+                return read(off, size_)
+            finally:
+                t["cb"] += clock() - t0
+                t["calls"] += 1
+
+        def w(off, size_, value):
+            t0 = clock()
+            try:
+                write(off, size_, value)
+            finally:
+                t["cb"] += clock() - t0
+                t["calls"] += 1
+
+        return mmio_map(self, address, size, r, w, page)
+
+    ucfast.FastUc.mmio_map = timed_map
+    sims = []
+
+    def hook(bench):
+        sims.append(bench)
+        for chip in bench.boards.values():
+            start = chip.uc.emu_start
+
+            def emu_start(begin, until, timeout=0, count=0, start=start):
+                t0 = clock()
+                try:
+                    start(begin, until, timeout, count)
+                finally:
+                    t["emu"] += clock() - t0
+                    t["slices"] += 1
+
+            chip.uc.emu_start = emu_start
+
+    t0 = clock()
+    if a.play:
+        argv = ["play-check", "--ticks", a.play, "--", *a.play_args]
+        rc = bench_main(argv, on_bench=hook)
+        if rc:
+            return rc
+    else:
+        bench = Bench(a.slave, a.master)
+        hook(bench)
+        bench.run(int(a.ms * 1e-3 * Chip.TICK_HZ))
+    wall = clock() - t0
+    bench = sims[0]
+    sim_s = bench.now / Chip.TICK_HZ
+    instr = sum(c.instructions for c in bench.boards.values())
+    cb_inside = t["cb"]
+    print(
+        f"{wall:.2f} s wall for {sim_s * 1e3:.0f} simulated ms from reset, "
+        f"{instr / 1e6:.1f} M instructions on both boards"
+    )
+    in_uc = t["emu"] - cb_inside
+    per_instr = 1e9 * in_uc / max(instr, 1)
+    per_call = 1e6 * cb_inside / max(t["calls"], 1)
+    print(
+        f"  {in_uc:6.2f} s  in unicorn: {t['slices']} slices, {per_instr:.0f} ns an instruction"
+        " (with the native fast path's accesses and ctypes' way to the Python ones)"
+    )
+    print(f"  {cb_inside:6.2f} s  in {t['calls']} Python register accesses, {per_call:.1f} us each")
+    print(f"  {wall - t['emu']:6.2f} s  the rest: lock-step loop, events, interrupts, pty, start-up")
+    return 0
 
 
 if __name__ == "__main__":
