@@ -13,9 +13,11 @@ them (idle after boot: the SPI link's polls, the time driver, the executors); or
 `play` of that stream: both boards busy relaying it), from reset to play's end. A unicorn
 block hook on every block makes the model about 3x slower than without it.
 
---wall instead splits the model's own wall time (no block hook): inside unicorn (emulating,
-and the native fast path's register accesses), inside the Python peripheral callbacks (with
-ctypes' way in and out), and the rest (the lock-step loop, events, interrupts, the pty).
+--wall instead splits the model's own wall time (no block hook): inside `emu_start`, split
+into the Python register accesses, the Python traps (the BKPTs over WFE/SEV and the panic
+entries) and the rest of it (unicorn, the native fast path, ctypes' way to Python and back and
+ucfast's wrappers around the accesses); and outside it (the lock-step loop, events, exception
+entries, the pty). `perf record` then `perf report --sort dso` splits that rest further.
 """
 
 import argparse
@@ -105,8 +107,19 @@ def main():
 def wall_split(a):
     """--wall: time inside `emu_start` and inside the Python callbacks, measured around each."""
     clock = time.perf_counter
-    t = {"emu": 0.0, "slices": 0, "cb": 0.0, "calls": 0}
+    t = {"emu": 0.0, "slices": 0, "cb": 0.0, "calls": 0, "trap": 0.0, "traps": 0}
     mmio_map = ucfast.FastUc.mmio_map
+    on_intr = Chip._on_intr
+
+    def timed_intr(self, uc, intno, ud):
+        t0 = clock()
+        try:
+            return on_intr(self, uc, intno, ud)
+        finally:
+            t["trap"] += clock() - t0
+            t["traps"] += 1
+
+    Chip._on_intr = timed_intr
 
     def timed_map(self, address, size, read, write, page=None):
         def r(off, size_):
@@ -159,20 +172,20 @@ def wall_split(a):
     bench = sims[0]
     sim_s = bench.now / Chip.TICK_HZ
     instr = sum(c.instructions for c in bench.boards.values())
-    cb_inside = t["cb"]
+    in_uc = t["emu"] - t["cb"] - t["trap"]
+    per_call = 1e6 * t["cb"] / max(t["calls"], 1)
     print(
         f"{wall:.2f} s wall for {sim_s * 1e3:.0f} simulated ms from reset, "
         f"{instr / 1e6:.1f} M instructions on both boards"
     )
-    in_uc = t["emu"] - cb_inside
-    per_instr = 1e9 * in_uc / max(instr, 1)
-    per_call = 1e6 * cb_inside / max(t["calls"], 1)
+    print(f"  {t['emu']:6.2f} s  in emu_start ({t['slices']} slices), of which")
+    print(f"  {t['cb']:12.2f} s  {t['calls']} Python register accesses, {per_call:.1f} us each")
+    print(f"  {t['trap']:12.2f} s  {t['traps']} Python traps (WFE, SEV, panic entries)")
     print(
-        f"  {in_uc:6.2f} s  in unicorn: {t['slices']} slices, {per_instr:.0f} ns an instruction"
-        " (with the native fast path's accesses and ctypes' way to the Python ones)"
+        f"  {in_uc:12.2f} s  unicorn, the native fast path, ctypes' crossings "
+        f"({1e9 * in_uc / max(instr, 1):.0f} ns an instruction)"
     )
-    print(f"  {cb_inside:6.2f} s  in {t['calls']} Python register accesses, {per_call:.1f} us each")
-    print(f"  {wall - t['emu']:6.2f} s  the rest: lock-step loop, events, interrupts, pty, start-up")
+    print(f"  {wall - t['emu']:6.2f} s  outside: lock-step loop, events, exception entries, pty, start-up")
     return 0
 
 
