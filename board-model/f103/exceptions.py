@@ -194,6 +194,8 @@ class ExceptionModel:
     _fault_pending = None
 
     def _uc_fault(self, e):
+        if self.fast.clock is not None and self._in_slice:
+            self.now = self.fast.instruction_time()  # the faulting instruction's
         pc = self.uc.reg_read(UC_ARM_REG_PC) & ~1
         sp = self.uc.reg_read(UC_ARM_REG_SP)
         if sp < self.sp_min:

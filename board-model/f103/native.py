@@ -44,37 +44,56 @@ class Page(ctypes.Structure):
         ("tim_arr", ctypes.c_uint32),
         ("tim_arr_active", ctypes.c_uint32),
         ("tim_anchor", ctypes.c_int64),
+        ("tim_due", ctypes.c_int64),
     ]
 
+
+NEVER = (1 << 63) - 1  # a timer page's `tim_due` when no enabled event is coming
 
 _LIB = []  # loaded once per process: [library or None]
 
 
+def new_page():
+    """A page that answers nothing natively until its peripheral's `attach_native` says."""
+    page = Page()
+    page.tim_due = NEVER
+    return page
+
+
+# -ffp-contract=off: the time of an instruction, start + (n - 1) * tpi, in two roundings as
+# Python computes it, never fused into one (an FMA on aarch64, or with -march=native).
+FLAGS = ["-O2", "-shared", "-fPIC", "-ffp-contract=off"]
+
+
 def _build():
-    """The shared library's path, built if this source has not been built yet."""
-    with open(SOURCE, "rb") as f:
-        digest = hashlib.sha256(f.read()).hexdigest()[:16]
-    path = os.path.join(BUILD_DIR, f"fastpath-{digest}.so")
-    if os.path.exists(path):
-        return path
+    """The shared library's path, built if this source has not been built yet with this
+    compiler and these flags."""
     cc = shlex.split(os.environ.get("CC", "")) or [shutil.which("cc") or shutil.which("gcc")]
     if cc[0] is None:
         raise OSError("no C compiler (cc) found")
+    with open(SOURCE, "rb") as f:
+        digest = hashlib.sha256(f.read() + repr((cc, FLAGS)).encode()).hexdigest()[:16]
+    path = os.path.join(BUILD_DIR, f"fastpath-{digest}.so")
+    if os.path.exists(path):
+        return path
     os.makedirs(BUILD_DIR, exist_ok=True)
     # built beside its final name and renamed: a second process sees the whole file or none
     fd, tmp = tempfile.mkstemp(dir=BUILD_DIR, suffix=".so.partial")
     os.close(fd)
     try:
         subprocess.run(
-            [*cc, "-O2", "-shared", "-fPIC", "-o", tmp, SOURCE],
+            [*cc, *FLAGS, "-o", tmp, SOURCE],
             check=True,
             capture_output=True,
             text=True,
         )
         os.replace(tmp, path)
-        for old in os.listdir(BUILD_DIR):  # earlier versions of the source
-            if old.startswith("fastpath-") and old.endswith(".so") and old != os.path.basename(path):
-                os.unlink(os.path.join(BUILD_DIR, old))
+        for old in os.listdir(BUILD_DIR):  # earlier builds, and what a killed build left
+            if old.startswith("fastpath-") and old != os.path.basename(path):
+                try:
+                    os.unlink(os.path.join(BUILD_DIR, old))
+                except OSError:
+                    pass  # another process's: it cleans up after itself
     except subprocess.CalledProcessError as e:
         raise OSError(f"{' '.join(cc)} failed on {SOURCE}:\n{e.stderr}") from None
     finally:
@@ -101,12 +120,13 @@ def library():
                 Page.tim_anchor.offset,
                 ctypes.sizeof(Clock),
                 Clock.tpi.offset,
+                Page.tim_due.offset,
             ]
             got = [lib.fp_layout(i) for i in range(len(want))]
             if got != want:
                 raise OSError(f"layout of fastpath.c {got} is not native.py's {want}")
             lib.fp_init()
-        except OSError as e:
+        except (OSError, AttributeError) as e:  # AttributeError: a symbol missing from the build
             print(f"board model: running without the native fast path: {e}", file=sys.stderr)
             lib = None
     _LIB.append(lib)

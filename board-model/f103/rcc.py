@@ -169,8 +169,6 @@ class Rcc(Peripheral):
             self.apb2enr = self.merge(self.apb2enr, value, mask)
         elif off == 0x1C:
             self.apb1enr = self.merge(self.apb1enr, value, mask)
-        if off in (0x14, 0x18, 0x1C):
-            c.gates_changed()
         elif off == 0x20:
             v = self.merge(self.bdcr, value, mask)
             v = (v & ~2) | ((v & 1) << 1)  # LSERDY follows LSEON
@@ -181,6 +179,8 @@ class Rcc(Peripheral):
             if v & (1 << 24):  # RMVF clears the reset flags
                 v &= 0x00FFFFFF
             self.csr = v & ~(1 << 24)
+        if off in (0x14, 0x18, 0x1C):  # a clock enable: the native fast path answers while on
+            c.gates_changed()
         c.reschedule()
 
 

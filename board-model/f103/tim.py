@@ -67,6 +67,8 @@ class Timer(Peripheral):
         pg.tim_arr, pg.tim_arr_active = self.arr, self.arr_active
         timclk = getattr(self.chip, "timclk", None)
         pg.tim_div = self.chip.TICK_HZ // timclk[self.apb] if timclk else 0
+        due = self.next_event() if timclk else None
+        pg.tim_due = native.NEVER if due is None else due
 
     # --- clocking --------------------------------------------------------------------------
     def ticks_per_count(self):

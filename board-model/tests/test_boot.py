@@ -86,7 +86,8 @@ bench.run(int(0.03 * Chip.TICK_HZ))
 out = {"native": native.library() is not None}
 for name, c in bench.boards.items():
     ram = hashlib.sha256(bytes(c.uc.mem_read(0x20000000, 0x5000))).hexdigest()
-    out[name] = [c.instructions, c.exceptions, c.sleeps, c.spi1.bytes, c.tim2.cnt, ram]
+    out[name] = [c.instructions, c.exceptions, c.sleeps, c.spi1.bytes, c.tim2.cnt, ram,
+                 c.now, sorted(c.nvic.pending), c.faults, c.panics, c.messages]
 print(json.dumps(out))
 """
 
@@ -96,7 +97,8 @@ class TestNativeFastPath(unittest.TestCase):
     def test_python_alone_and_the_fast_path_agree_to_the_instruction(self):
         """The same 30 ms (boot, the SPI link, 600 encoder counts on the slave) with the
         native fast path and without: the same instructions, exceptions, sleeps, SPI bytes,
-        encoder count, and every byte of both boards' RAM."""
+        encoder count, every byte of both boards' RAM, their clocks, pending interrupts,
+        faults, panics and log."""
         runs = {}
         for flag in ("0", "1"):
             out = subprocess.run(

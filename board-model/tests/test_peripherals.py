@@ -254,7 +254,7 @@ class TestInstructionClock(unittest.TestCase):
             lambda off, size, value: seen.append(("write", clock.now)),
         )
         uc.reg_write(UC_ARM_REG_R2, 0x40000000)
-        fast.slice[0], fast.slice[1] = 1000, 9.0  # at HSI: 9 ticks an instruction
+        fast.set_slice(1000, 9.0)  # at HSI: 9 ticks an instruction
         uc.emu_start(0x08000001, 0, count=8)
         # the load is the third instruction, the store the fifth
         self.assertEqual(seen, [("read", 1000 + 2 * 9), ("write", 1000 + 4 * 9)])
@@ -287,6 +287,46 @@ class TestInstructionClock(unittest.TestCase):
         self.assertEqual(uc.reg_read(UC_ARM_REG_PC), 0x08000004)  # stopped after it
         self.assertEqual(uc.reg_read(UC_ARM_REG_R0), 1)
         self.assertEqual(fast.counter.value - 1, 2)  # two instructions ran
+
+
+class TestNativeTimer(unittest.TestCase):
+    # native.py: a timer's CNT read without Python, except at or past its next enabled event
+    def test_cnt_reads_go_to_python_once_an_enabled_event_is_due(self):
+        from unicorn import Uc, UC_ARCH_ARM, UC_MODE_THUMB, UC_MODE_MCLASS
+        from unicorn.arm_const import UC_ARM_REG_R2, UC_ARM_REG_R3, UC_CPU_ARM_CORTEX_M3
+
+        from f103 import native
+        from f103.ucfast import FastUc
+
+        self.assertIsNotNone(native.library(), "the native fast path did not load (cc?)")
+        uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M3)
+        uc.mem_map(0x08000000, 0x1000)
+        # ldr r3, [r2, #0x24] twelve times (TIM4's CNT); b .
+        uc.mem_write(0x08000000, bytes.fromhex("536a") * 12 + bytes.fromhex("fee7"))
+        chip = StubChip()
+        t = Timer(chip, 0x40000800, "TIM4", 1, {"up": 30})
+        t.write(0x34, 50, W)  # CCR1
+        t.write(0x0C, 2, W)  # CC1IE
+        t.write(0x00, 1, W)  # CEN at tick 0, a count a tick (PSC 0, 72 MHz)
+        page, by_python = native.new_page(), []
+        t.attach_native(page)
+        fast = FastUc(uc, clock=chip)
+
+        def read(off, size):
+            by_python.append((off, chip.now))
+            return t.read(off)
+
+        fast.mmio_map(0x40000800, 0x400, read, lambda off, size, v: t.write(off, v, W), page)
+        page.gate_on = 1
+        uc.reg_write(UC_ARM_REG_R2, 0x40000800)
+        fast.set_slice(0, 9.0)  # instruction k at tick 9 (k - 1)
+        uc.emu_start(0x08000001, 0, count=12)
+        # reads 1..6 (ticks 0..45) natively; the 7th, at tick 54, past CC1 at 50, by Python,
+        # whose sync raises CC1IF; then natively again (the next match is a wrap away)
+        self.assertEqual(by_python, [(0x24, 54)])
+        self.assertIn(16 + 30, chip.nvic.pending)
+        self.assertEqual(uc.reg_read(UC_ARM_REG_R3), 99)  # the 12th read, at tick 99
 
 
 if __name__ == "__main__":

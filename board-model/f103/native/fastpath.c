@@ -7,12 +7,16 @@
  *   FP_MIRROR  (read) the value the Python model last published in `regs`: a register whose
  *              read has no side effect and whose value changes only through the model;
  *   FP_TIM_CNT (read) a timer's counter, computed from the fields the Python model publishes,
- *              the same arithmetic as tim.py's `sync` when nothing is preloaded;
+ *              the same arithmetic as tim.py's `sync` unless a PSC or ARR preload waits for
+ *              the update;
  *   FP_CRC_DR  (write) a word into the CRC unit (RM0008 §4: CRC-32, 0x04C11DB7, MSB first),
  *              whose data register lives in `regs[0]`;
  *   FP_CRC_CR  (write) the CRC unit's control register: RESET (bit 0) sets DR to 0xFFFFFFFF.
- * Anything these cannot answer exactly (a clock-gated peripheral, a timer with a preload
- * pending, a byte write to the CRC) goes to the Python model, which keeps the definition.
+ * Anything these cannot answer exactly (a clock-gated peripheral, a timer with a PSC or ARR
+ * preload pending, a byte write to the CRC) goes to the Python model, which keeps the
+ * definition. So does any read of a timer at or past its next enabled event (`tim_due`): there
+ * Python's read syncs the timer, which raises the interrupt and ends the slice at that
+ * instruction (a timer write inside a slice can bring that event before the slice's end).
  * f103/native.py builds this file and checks the layout below against its ctypes mirror. */
 
 #include <stddef.h>
@@ -43,6 +47,7 @@ struct fp_page {
     uint32_t tim_div; /* chip ticks per timer-clock cycle */
     uint32_t tim_cr1, tim_smcr, tim_cnt, tim_psc, tim_psc_active, tim_arr, tim_arr_active;
     int64_t tim_anchor;
+    int64_t tim_due; /* the tick of the next event whose interrupt DIER enables; INT64_MAX: none */
 };
 
 static uint32_t crc_table[4][256];
@@ -70,6 +75,7 @@ size_t fp_layout(int what) {
     case 3: return offsetof(struct fp_page, tim_anchor);
     case 4: return sizeof(struct fp_clock);
     case 5: return offsetof(struct fp_clock, tpi);
+    case 6: return offsetof(struct fp_page, tim_due);
     default: return 0;
     }
 }
@@ -85,8 +91,14 @@ static uint64_t lane(uint32_t reg, uint64_t off, unsigned size) {
     return size >= 4 ? v : v & ((1u << (8 * size)) - 1);
 }
 
-/* tim.py: CNT after `sync(now)`, when the counter runs and nothing preloaded waits for the
- * next update (so the count to `now` is one step of `_advance`); 0 if Python must answer. */
+/* The tick of the instruction running (FastUc.instruction_time). */
+static int64_t now_of(const struct fp_clock *c) {
+    return (int64_t)((double)c->start + (double)(*c->counter - 1) * c->tpi);
+}
+
+/* tim.py: CNT after `sync(now)`, when the counter runs and no PSC or ARR preload waits for the
+ * next update (so the count to `now` is one step of `_advance`) and no enabled event is due;
+ * 0 if Python must answer. */
 static int timer_cnt(const struct fp_page *p, uint32_t *out) {
     uint32_t sms = p->tim_smcr & 7;
     int running = (p->tim_cr1 & 1) && !(sms >= 1 && sms <= 3);
@@ -97,8 +109,9 @@ static int timer_cnt(const struct fp_page *p, uint32_t *out) {
     if (p->tim_psc != p->tim_psc_active || p->tim_arr != p->tim_arr_active || p->clock == NULL
         || p->tim_div == 0)
         return 0;
-    const struct fp_clock *c = p->clock;
-    int64_t now = (int64_t)((double)c->start + (double)(*c->counter - 1) * c->tpi);
+    int64_t now = now_of(p->clock);
+    if (now >= p->tim_due)
+        return 0;
     int64_t per = (int64_t)p->tim_div * (p->tim_psc_active + 1);
     int64_t since = now - p->tim_anchor;
     if (since < per) {
@@ -122,6 +135,9 @@ uint64_t fp_read(void *uc, uint64_t off, unsigned size, void *ud) {
     if (p->gate_on) {
         switch (p->read_kind[i]) {
         case FP_MIRROR:
+            /* a timer's DIER: Python's read would sync it, raising an event that is due */
+            if (p->tim_due != INT64_MAX && p->clock != NULL && now_of(p->clock) >= p->tim_due)
+                break;
             return lane(p->regs[i], off, size);
         case FP_TIM_CNT: {
             uint32_t v;
