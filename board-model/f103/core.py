@@ -205,7 +205,7 @@ class Chip(ExceptionModel, ResetModel):
         for p in {id(p): p for p in self.ptab.values()}.values():
             page = None
             if self.fast.native is not None and hasattr(p, "attach_native"):
-                page = native.new_page()
+                page = native.Page()
                 p.attach_native(page)
                 self.native_pages.append((p, page))
             self.fast.mmio_map(p.base, p.size, self._reader(p), self._writer(p), page)

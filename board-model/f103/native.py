@@ -44,20 +44,12 @@ class Page(ctypes.Structure):
         ("tim_arr", ctypes.c_uint32),
         ("tim_arr_active", ctypes.c_uint32),
         ("tim_anchor", ctypes.c_int64),
-        ("tim_due", ctypes.c_int64),
+        ("tim_ccr_active", ctypes.c_uint32 * 4),
+        ("is_timer", ctypes.c_uint32),
     ]
 
 
-NEVER = (1 << 63) - 1  # a timer page's `tim_due` when no enabled event is coming
-
 _LIB = []  # loaded once per process: [library or None]
-
-
-def new_page():
-    """A page that answers nothing natively until its peripheral's `attach_native` says."""
-    page = Page()
-    page.tim_due = NEVER
-    return page
 
 
 # -ffp-contract=off: the time of an instruction, start + (n - 1) * tpi, in two roundings as
@@ -120,7 +112,8 @@ def library():
                 Page.tim_anchor.offset,
                 ctypes.sizeof(Clock),
                 Clock.tpi.offset,
-                Page.tim_due.offset,
+                Page.tim_ccr_active.offset,
+                Page.is_timer.offset,
             ]
             got = [lib.fp_layout(i) for i in range(len(want))]
             if got != want:

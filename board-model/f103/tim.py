@@ -52,12 +52,14 @@ class Timer(Peripheral):
     def attach_native(self, page):
         """CNT and DIER read natively: CNT from what `_publish` tells it, DIER as published."""
         self._page = page
+        page.is_timer = 1
         page.read_kind[0x24 >> 2] = native.TIM_CNT
         page.read_kind[0x0C >> 2] = native.MIRROR
         self._publish()
 
     def _publish(self):
-        """Tell the fast path the counter's state: after anything that changes it."""
+        """Tell the fast path the counter's state (and what `next_event` needs): after anything
+        that changes it."""
         pg = self._page
         if pg is None:
             return
@@ -65,10 +67,9 @@ class Timer(Peripheral):
         pg.tim_cr1, pg.tim_smcr, pg.tim_cnt, pg.tim_anchor = self.cr1, self.smcr, self.cnt, self.anchor
         pg.tim_psc, pg.tim_psc_active = self.psc, self.psc_active
         pg.tim_arr, pg.tim_arr_active = self.arr, self.arr_active
+        pg.tim_ccr_active[:] = self.ccr_active
         timclk = getattr(self.chip, "timclk", None)
         pg.tim_div = self.chip.TICK_HZ // timclk[self.apb] if timclk else 0
-        due = self.next_event() if timclk else None
-        pg.tim_due = native.NEVER if due is None else due
 
     # --- clocking --------------------------------------------------------------------------
     def ticks_per_count(self):
@@ -140,7 +141,7 @@ class Timer(Peripheral):
         n = (now - self.anchor) // per
         if n <= 0:
             return
-        sr = self.sr
+        sr, overflows = self.sr, self.overflows
         while n > 0:
             # the prescaler may change at the first update: count up to it, then re-read
             to_ovf = (self.arr_active - self.cnt) % 0x10000 + 1
@@ -153,7 +154,12 @@ class Timer(Peripheral):
                 self._advance(n)
                 self.anchor += n * per
                 n = 0
-        self._publish()
+        pg = self._page
+        if pg is not None:
+            if self.overflows != overflows:  # an update: preloads, one-pulse mode's stop
+                self._publish()
+            else:  # the count moved, nothing else
+                pg.tim_cnt, pg.tim_anchor = self.cnt, self.anchor
         if self.sr != sr:
             self._irq()
             self.chip.reschedule()

@@ -309,7 +309,7 @@ class TestNativeTimer(unittest.TestCase):
         t.write(0x34, 50, W)  # CCR1
         t.write(0x0C, 2, W)  # CC1IE
         t.write(0x00, 1, W)  # CEN at tick 0, a count a tick (PSC 0, 72 MHz)
-        page, by_python = native.new_page(), []
+        page, by_python = native.Page(), []
         t.attach_native(page)
         fast = FastUc(uc, clock=chip)
 

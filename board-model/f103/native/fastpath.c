@@ -14,9 +14,10 @@
  *   FP_CRC_CR  (write) the CRC unit's control register: RESET (bit 0) sets DR to 0xFFFFFFFF.
  * Anything these cannot answer exactly (a clock-gated peripheral, a timer with a PSC or ARR
  * preload pending, a byte write to the CRC) goes to the Python model, which keeps the
- * definition. So does any read of a timer at or past its next enabled event (`tim_due`): there
- * Python's read syncs the timer, which raises the interrupt and ends the slice at that
- * instruction (a timer write inside a slice can bring that event before the slice's end).
+ * definition. So does any read of a timer at or past its next enabled event (`timer_due`, tim.py's
+ * `next_event`): there Python's read syncs the timer, which raises the interrupt and ends the
+ * slice at that instruction (a timer write inside a slice can bring that event before the
+ * slice's end).
  * f103/native.py builds this file and checks the layout below against its ctypes mirror. */
 
 #include <stddef.h>
@@ -47,7 +48,8 @@ struct fp_page {
     uint32_t tim_div; /* chip ticks per timer-clock cycle */
     uint32_t tim_cr1, tim_smcr, tim_cnt, tim_psc, tim_psc_active, tim_arr, tim_arr_active;
     int64_t tim_anchor;
-    int64_t tim_due; /* the tick of the next event whose interrupt DIER enables; INT64_MAX: none */
+    uint32_t tim_ccr_active[4];
+    uint32_t is_timer; /* the fields above and DIER (regs[3]) are a timer's */
 };
 
 static uint32_t crc_table[4][256];
@@ -75,7 +77,8 @@ size_t fp_layout(int what) {
     case 3: return offsetof(struct fp_page, tim_anchor);
     case 4: return sizeof(struct fp_clock);
     case 5: return offsetof(struct fp_clock, tpi);
-    case 6: return offsetof(struct fp_page, tim_due);
+    case 6: return offsetof(struct fp_page, tim_ccr_active);
+    case 7: return offsetof(struct fp_page, is_timer);
     default: return 0;
     }
 }
@@ -96,13 +99,49 @@ static int64_t now_of(const struct fp_clock *c) {
     return (int64_t)((double)c->start + (double)(*c->counter - 1) * c->tpi);
 }
 
+static int timer_running(const struct fp_page *p) {
+    uint32_t sms = p->tim_smcr & 7;
+    return (p->tim_cr1 & 1) && !(sms >= 1 && sms <= 3);
+}
+
+/* tim.py's `next_event`: the tick of the next update or compare match whose interrupt DIER
+ * enables, for a running timer; INT64_MAX for none. */
+static int64_t timer_due(const struct fp_page *p) {
+    uint32_t en = p->regs[0x0C >> 2] & 0x1F;
+    if (!en)
+        return INT64_MAX;
+    int64_t per = (int64_t)p->tim_div * (p->tim_psc_active + 1);
+    int64_t mod = (int64_t)p->tim_arr_active + 1;
+    int64_t best = INT64_MAX;
+    if (en & 1)
+        best = ((p->tim_arr_active - p->tim_cnt) & 0xFFFF) + 1;
+    for (int i = 0; i < 4; i++) {
+        uint32_t c = p->tim_ccr_active[i];
+        if ((en & (2u << i)) && c <= p->tim_arr_active) {
+            int64_t d = ((int64_t)c - (int64_t)p->tim_cnt) % mod;
+            if (d < 0)
+                d += mod;
+            if (d == 0)
+                d = mod;
+            if (d < best)
+                best = d;
+        }
+    }
+    return best == INT64_MAX ? INT64_MAX : p->tim_anchor + best * per;
+}
+
+/* Whether Python must answer a read of this timer now: an enabled event is due, so its sync
+ * raises the interrupt. */
+static int timer_event_due(const struct fp_page *p) {
+    return timer_running(p) && p->clock != NULL && p->tim_div != 0
+        && now_of(p->clock) >= timer_due(p);
+}
+
 /* tim.py: CNT after `sync(now)`, when the counter runs and no PSC or ARR preload waits for the
  * next update (so the count to `now` is one step of `_advance`) and no enabled event is due;
  * 0 if Python must answer. */
 static int timer_cnt(const struct fp_page *p, uint32_t *out) {
-    uint32_t sms = p->tim_smcr & 7;
-    int running = (p->tim_cr1 & 1) && !(sms >= 1 && sms <= 3);
-    if (!running) {
+    if (!timer_running(p)) {
         *out = p->tim_cnt;
         return 1;
     }
@@ -110,7 +149,7 @@ static int timer_cnt(const struct fp_page *p, uint32_t *out) {
         || p->tim_div == 0)
         return 0;
     int64_t now = now_of(p->clock);
-    if (now >= p->tim_due)
+    if (now >= timer_due(p))
         return 0;
     int64_t per = (int64_t)p->tim_div * (p->tim_psc_active + 1);
     int64_t since = now - p->tim_anchor;
@@ -136,7 +175,7 @@ uint64_t fp_read(void *uc, uint64_t off, unsigned size, void *ud) {
         switch (p->read_kind[i]) {
         case FP_MIRROR:
             /* a timer's DIER: Python's read would sync it, raising an event that is due */
-            if (p->tim_due != INT64_MAX && p->clock != NULL && now_of(p->clock) >= p->tim_due)
+            if (p->is_timer && timer_event_due(p))
                 break;
             return lane(p->regs[i], off, size);
         case FP_TIM_CNT: {
