@@ -5,6 +5,7 @@
 //! Time is the last port: the tasks use `embassy_time`, whose driver is TIM4 on the board and a
 //! virtual clock in the emulator.
 
+use embassy_time::Instant;
 use protocol::spi::SPI_FRAME_LEN;
 
 /// Number of driven omni wheels (seed 003 layout).
@@ -25,12 +26,16 @@ pub enum SpiMasterError {
 #[allow(async_fn_in_trait)]
 /// SPI master towards the slave: one chip-select-framed, full-duplex, fixed-size transaction.
 pub trait SlaveBus {
-    /// Assert chip select, clock `tx` out while reading `rx`, release chip select.
+    /// Assert chip select, clock `tx` out while reading `rx`, release chip select. Returns
+    /// when the frame's last bit was clocked, on this board's clock: the slave re-arms from
+    /// that instant, not from when this task got the CPU back to release chip select (a task
+    /// holding the CPU meanwhile must not move the instant the controller learns the slave's
+    /// clock from).
     async fn exchange(
         &mut self,
         tx: &[u8; SPI_FRAME_LEN],
         rx: &mut [u8; SPI_FRAME_LEN],
-    ) -> Result<(), SpiMasterError>;
+    ) -> Result<Instant, SpiMasterError>;
 }
 
 /// The serial port's rate, set while it runs: the host negotiates a faster one than the

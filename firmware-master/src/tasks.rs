@@ -78,9 +78,9 @@ pub async fn host_rx_task(mut rx: impl Read, shared: &MasterShared) -> ! {
             }
         }
         // A read returns at once while bytes wait: without a yield between chunks, a backlog
-        // (a burst at 2 Mbaud) kept the other tasks waiting for milliseconds, and the SPI
-        // poll, resumed that late, dated its exchange's end 2.4 ms after the slave re-armed:
-        // a clock jump the controller takes for a slave reset.
+        // (a burst at 2 Mbaud) kept the other tasks waiting for milliseconds (the SPI poll
+        // among them, which dated its exchange's end then, 2.4 ms after the slave re-armed: a
+        // clock jump the controller took for a slave reset, until the bus dated it itself).
         embassy_futures::yield_now().await;
     }
 }
@@ -177,10 +177,10 @@ pub async fn slave_poll_task(
         };
         let tx = spi::encode(&frame);
         let result = bus.exchange(&tx, &mut rx).await;
-        let now = Instant::now();
         shared.with(|c| match result {
-            Ok(()) => c.on_slave_frame(now, spi::decode::<SlaveFrame>(&rx)),
-            Err(_) => c.on_slave_bus_error(now),
+            // Dated by the bus: when the last bit went, not when this task ran again.
+            Ok(end) => c.on_slave_frame(end, spi::decode::<SlaveFrame>(&rx)),
+            Err(_) => c.on_slave_bus_error(Instant::now()),
         });
     }
 }

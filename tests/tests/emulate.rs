@@ -542,6 +542,24 @@ fn spi_bit_errors_and_lost_transactions_lose_nothing() {
     }
 }
 
+/// The master's poll task late to get the CPU back after a transaction (another task held it:
+/// at 2 Mbaud the serial reader once did, for 2.4 ms): chip select stays low 3 ms longer, while
+/// the slave has re-armed on time. The exchange still ends when its last bit went, so the
+/// boards' clock offset does not jump and no slave reset is imagined; the run still arrives.
+#[test]
+fn a_master_late_to_release_chip_select_imagines_no_slave_reset() {
+    let scenario = Scenario::seed004_pursuit();
+    let mut opts = Options::new(&scenario);
+    opts.seed = 1;
+    opts.keep_log = false;
+    opts.faults.spi.late = 0.05;
+    let faulty = emulator::run(&scenario, &opts).unwrap().summary;
+    assert!(faulty.spi_injected.late > 50, "{:?}", faulty.spi_injected);
+    assert_eq!(faulty.slave_reset_told_s, None);
+    assert_eq!(faulty.master_view_matches_slave, Some(true));
+    assert!(faulty.arrived && faulty.distance_to_goal_m < GOAL_TOLERANCE_M);
+}
+
 /// A slave late to re-arm sends its previous frame again (the only duplicate a synchronous bus
 /// has). The master must know it for the frame it already read: counted with the rejected,
 /// never taken as fresh, and never used to learn the boards' clock offset (its arming was not

@@ -7,6 +7,7 @@ use embassy_stm32::spi::mode::Master;
 use embassy_stm32::spi::{BitOrder, Config, Spi, MODE_0};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::Peri;
+use embassy_time::{Duration, Instant};
 use firmware_master::ports::{SlaveBus, SpiMasterError};
 use protocol::spi::SPI_FRAME_LEN;
 
@@ -17,6 +18,8 @@ use super::Irqs;
 /// inside the 500 us stream poll period with room for the slave to re-arm, a quarter of the
 /// slave's 18 MHz limit, and slow enough for a few centimetres of wire between the boards.
 const SCK_HZ: u32 = protocol::spi::SPI_CLOCK_HZ;
+/// A frame's time on the wire at `SCK_HZ`, rounded up to the clock's microsecond.
+const FRAME_US: u64 = (SPI_FRAME_LEN as u64 * 8 * 1_000_000).div_ceil(SCK_HZ as u64);
 
 /// Delay between chip select going low and the first clock edge, in CPU cycles (~5 us at
 /// 72 MHz). The slave's NSS must be seen low before clocking starts; this also leaves a margin
@@ -83,14 +86,19 @@ impl SlaveBus for SlaveLink {
         &mut self,
         tx: &[u8; SPI_FRAME_LEN],
         rx: &mut [u8; SPI_FRAME_LEN],
-    ) -> Result<(), SpiMasterError> {
+    ) -> Result<Instant, SpiMasterError> {
         let selected = ChipSelect::assert(&mut self.cs);
         // A blocking delay: a few microseconds, shorter than an executor round trip through
         // the timer queue would be.
         cortex_m::asm::delay(CS_SETUP_CYCLES);
-        // Full duplex on DMA; it returns once the last bit has been clocked (BSY clear).
+        // Full duplex on DMA; it returns once the last bit has been clocked (BSY clear), or
+        // later if another task holds the CPU then. The clocking starts here, inside this
+        // call, and takes FRAME_US: that is when the slave saw its last bit.
+        let start = Instant::now();
         let result = self.spi.transfer(rx, tx).await;
         drop(selected);
-        result.map_err(|_| SpiMasterError::Bus)
+        result
+            .map(|()| start + Duration::from_micros(FRAME_US))
+            .map_err(|_| SpiMasterError::Bus)
     }
 }

@@ -13,7 +13,7 @@ use std::rc::Rc;
 use std::sync::{Arc, Mutex};
 use std::task::{Poll, Waker};
 
-use embassy_time::{Duration, Timer};
+use embassy_time::{Duration, Instant, Timer};
 use firmware_master::ports::{MotorDrivers, MotorEncoders, SlaveBus, SpiMasterError};
 use firmware_slave::ports::{
     AbsoluteEncoderPins, EdgeBatch, EncoderEdge, EncoderEdges, QuadratureCounters, SpiSlave,
@@ -204,6 +204,10 @@ pub struct SpiFaults {
     /// other duplicate and no delayed frame: the master clocks every bit, so a late slave
     /// shows as this, or as an idle line, which is `drop`.)
     pub duplicate: f64,
+    /// The master late to release chip select after a transaction, by [`LATE_CS`]: another of
+    /// its tasks held the CPU when the last bit went (the slave re-armed on time). Nothing is
+    /// lost; the transaction's end is still when its last bit went.
+    pub late: f64,
     /// Not noise but a bug: every master frame that carries played-event byte `event_bit`
     /// reaches the slave with that byte's lowest bit flipped, under a valid check, so the
     /// slave computes something else than the host (what `play`'s checks must catch).
@@ -218,6 +222,7 @@ pub struct SpiInjected {
     pub dropped: u64,
     pub torn: u64,
     pub duplicated: u64,
+    pub late: u64,
 }
 
 /// Frames refused, by why (`protocol::spi::SpiFrameError`), as the receiving board's decoder
@@ -343,10 +348,39 @@ impl SlaveBus for EmuMasterBus {
         &mut self,
         tx: &[u8; SPI_FRAME_LEN],
         rx: &mut [u8; SPI_FRAME_LEN],
-    ) -> Result<(), SpiMasterError> {
+    ) -> Result<Instant, SpiMasterError> {
         // Chip select: the slave's shift register holds what it armed before this instant.
+        let start = Instant::now();
         let from_slave = self.wire.borrow_mut().armed.take();
         Timer::after(self.transfer_time).await;
+        self.transaction(tx, rx, from_slave);
+        let late = {
+            let mut w = self.wire.borrow_mut();
+            let rate = w.faults.late;
+            let late = w.happens(rate);
+            w.injected.late += late as u64;
+            late
+        };
+        if late {
+            // Chip select still low: the master's task has not had the CPU back since.
+            Timer::after(LATE_CS).await;
+        }
+        Ok(start + self.transfer_time)
+    }
+}
+
+/// How much longer a late master holds chip select ([`SpiFaults::late`]): over the controller's
+/// 2 ms threshold for a slave clock that jumped (a slave reset).
+pub const LATE_CS: Duration = Duration::from_millis(3);
+
+impl EmuMasterBus {
+    /// The bytes of one transaction, the wire's faults done to them, once its last bit went.
+    fn transaction(
+        &mut self,
+        tx: &[u8; SPI_FRAME_LEN],
+        rx: &mut [u8; SPI_FRAME_LEN],
+        from_slave: Option<[u8; SPI_FRAME_LEN]>,
+    ) {
         let mut w = self.wire.borrow_mut();
         w.transactions += 1;
         let SpiFaults {
@@ -368,7 +402,7 @@ impl SlaveBus for EmuMasterBus {
             }
             // Read now, whole: the master has it.
             w.last_from_slave = Some((again, true));
-            return Ok(());
+            return;
         }
         if w.happens(drop) {
             w.injected.dropped += 1;
@@ -378,7 +412,7 @@ impl SlaveBus for EmuMasterBus {
             }
             *rx = [0x00; SPI_FRAME_LEN];
             w.rejected_by_master.count::<protocol::spi::SlaveFrame>(rx);
-            return Ok(());
+            return;
         }
         match from_slave {
             Some(mut bytes) => {
@@ -431,7 +465,6 @@ impl SlaveBus for EmuMasterBus {
                 w.last_from_slave = None;
             }
         }
-        Ok(())
     }
 }
 
