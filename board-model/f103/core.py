@@ -48,6 +48,7 @@ from . import native
 from . import nvic as nv
 from .crc import Crc, crc32_word_fast
 from .dma import Dma
+from .elf import need_tool
 from .exceptions import ExceptionModel, REGS_MASKS, REGS_PC_SP
 from .exti import Exti
 from .gpio import Afio, Gpio
@@ -292,9 +293,10 @@ class Chip(ExceptionModel, ResetModel):
         self.wfe_addrs, self.sev_addrs = [], []
         self.traps = {}  # address -> (handler, size of the original instruction)
         dis = subprocess.run(
-            ["/usr/bin/llvm-objdump", "-d", "--no-show-raw-insn", self.elf.path],
+            [need_tool("llvm-objdump"), "-d", "--no-show-raw-insn", self.elf.path],
             capture_output=True,
             text=True,
+            check=True,
         ).stdout
         for m in re.finditer(r"^\s*([0-9a-f]+):\s+(wfe|wfi|sev)(\.w)?\s*$", dis, re.M):
             a = int(m.group(1), 16)

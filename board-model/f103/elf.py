@@ -15,13 +15,34 @@ def _tool(name):
     return None
 
 
+class InputError(Exception):
+    """What the user gave (or the machine lacks) keeps the model from starting: said in one
+    line by scripts/board-model, exit status 2."""
+
+
+def need_tool(name):
+    """An LLVM tool the model cannot do without (its symbols, its traps), or a clear error."""
+    tool = _tool(name)
+    if tool is None:
+        raise InputError(
+            f"board model: {name} not found: the model reads the images' symbols and code with "
+            "LLVM's tools (Debian and Ubuntu: apt install llvm)"
+        )
+    return tool
+
+
 class Elf:
     def __init__(self, path):
         self.path = path
-        with open(path, "rb") as f:
-            data = f.read()
-        if data[:4] != b"\x7fELF" or data[4] != 1 or data[5] != 1:
-            raise ValueError(f"{path}: not a little-endian ELF32 file")
+        try:
+            with open(path, "rb") as f:
+                data = f.read()
+        except OSError as e:
+            raise InputError(f"{path}: {e.strerror} (build the images first: cargo build -p "
+                             "firmware-slave -p firmware-master --release --target "
+                             "thumbv7m-none-eabi)") from None
+        if len(data) < 0x34 or data[:4] != b"\x7fELF" or data[4] != 1 or data[5] != 1:
+            raise InputError(f"{path}: not a little-endian ELF32 file (an image for the chip)")
         (e_phoff,) = struct.unpack_from("<I", data, 0x1C)
         e_phentsize, e_phnum = struct.unpack_from("<HH", data, 0x2A)
         self.entry = struct.unpack_from("<I", data, 0x18)[0]
@@ -34,23 +55,22 @@ class Elf:
                 self.segments.append((p_paddr, p_vaddr, data[p_off : p_off + p_filesz], p_memsz))
         self.symbols = {}
         self._funcs = []  # sorted (addr, name) of text symbols
-        nm = _tool("llvm-nm")
-        if nm:
-            out = subprocess.run(
-                [nm, "-n", "--defined-only", path], capture_output=True, text=True
-            ).stdout
-            demangled = subprocess.run(
-                [nm, "-n", "-C", "--defined-only", path], capture_output=True, text=True
-            ).stdout.splitlines()
-            for line, dline in zip(out.splitlines(), demangled):
-                parts = line.split(None, 2)
-                dparts = dline.split(None, 2)
-                if len(parts) != 3:
-                    continue
-                addr, kind, name = int(parts[0], 16), parts[1], parts[2]
-                self.symbols.setdefault(name, addr)
-                if kind in "tTwW" and 0x08000000 <= addr < 0x08100000:
-                    self._funcs.append((addr & ~1, dparts[2] if len(dparts) == 3 else name))
+        nm = need_tool("llvm-nm")
+        out = subprocess.run(
+            [nm, "-n", "--defined-only", path], capture_output=True, text=True, check=True
+        ).stdout
+        demangled = subprocess.run(
+            [nm, "-n", "-C", "--defined-only", path], capture_output=True, text=True, check=True
+        ).stdout.splitlines()
+        for line, dline in zip(out.splitlines(), demangled):
+            parts = line.split(None, 2)
+            dparts = dline.split(None, 2)
+            if len(parts) != 3:
+                continue
+            addr, kind, name = int(parts[0], 16), parts[1], parts[2]
+            self.symbols.setdefault(name, addr)
+            if kind in "tTwW" and 0x08000000 <= addr < 0x08100000:
+                self._funcs.append((addr & ~1, dparts[2] if len(dparts) == 3 else name))
         # one name per address: aliases (identical code folded, DefaultHandler's IRQ names)
         byaddr = {}
         for a, n in self._funcs:

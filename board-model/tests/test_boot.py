@@ -13,7 +13,7 @@ import unittest
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 MODEL_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
-from support import MASTER, SLAVE, needs_images, needs_slave  # noqa: E402
+from support import BOARD_MODEL, MASTER, SLAVE, needs_images, needs_slave  # noqa: E402
 
 from f103.bench import Bench  # noqa: E402
 from f103.core import Chip  # noqa: E402
@@ -70,6 +70,24 @@ class TestClock(unittest.TestCase):
         finally:
             del Chip.now
         self.assertEqual(back, [])
+
+
+class TestBadInputs(unittest.TestCase):
+    def test_a_missing_image_a_wrong_file_or_a_missing_tool_is_said_in_one_line(self):
+        for args, said in (
+            (["--slave", "/nonexistent/firmware-slave"], "No such file or directory"),
+            (["--slave", os.path.abspath(__file__)], "not a little-endian ELF32 file"),
+        ):
+            run = subprocess.run(
+                [sys.executable, BOARD_MODEL, "boot", *args], capture_output=True, text=True
+            )
+            self.assertEqual(run.returncode, 2, run.stderr)
+            self.assertIn(said, run.stderr)
+            self.assertNotIn("Traceback", run.stderr)
+        from f103.elf import InputError, need_tool
+
+        with self.assertRaisesRegex(InputError, "apt install llvm"):
+            need_tool("llvm-no-such-tool")
 
 
 # Both boards from reset, the slave's wheels turning: what the native fast path must not change.

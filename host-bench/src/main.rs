@@ -64,7 +64,8 @@ enum Command {
         /// (quantisation depends on where the encoders stood at power-on).
         #[arg(long, value_name = "N", conflicts_with_all = ["out", "mcap", "live"])]
         sweep: Option<u32>,
-        /// Write run.csv (the log), path.svg (paths plot) and summary.json into this folder.
+        /// Write run.csv (the log), path.svg and path.png (the paths plotted) and summary.json into
+        /// this folder.
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
         #[command(flatten)]
