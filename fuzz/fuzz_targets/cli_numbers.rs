@@ -42,12 +42,13 @@ fuzz_target!(|data: &[u8]| {
     opts.faults.spi.corrupt = at(3);
     opts.faults.spi.drop = at(4);
     opts.faults.spi.duplicate = at(6);
+    opts.faults.spi.late = at(7);
     if emulator::check_options(&opts).is_ok() {
         assert!(opts.duration > 0.0 && opts.duration <= MAX_DURATION_S);
         for t in [at(1), at(2)] {
             assert!(t.is_finite() && t >= 0.0);
         }
-        for r in [at(3), at(4), at(6)] {
+        for r in [at(3), at(4), at(6), at(7)] {
             assert!((0.0..1.0).contains(&r));
         }
     }

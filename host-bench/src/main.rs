@@ -119,6 +119,11 @@ enum Command {
         /// the transaction (SPI has no other duplicate or delayed frame: the master clocks it).
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_spi_duplicate: Option<f64>,
+        /// Fault injection: the probability per SPI transaction, [0, 1), that the master is
+        /// late to release chip select, by 3 ms (another of its tasks held the CPU when the
+        /// last bit went); the slave re-arms on time, and no slave reset may be imagined.
+        #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
+        fault_spi_late: Option<f64>,
         /// Fault injection: the probability per serial frame between host and master, each
         /// way, [0, 1), that it has a bit flipped; the four below that it is lost, arrives
         /// twice, arrives after the next one, or is torn (a piece without its end, run into the
@@ -318,6 +323,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             fault_spi_drop,
             fault_spi_torn,
             fault_spi_duplicate,
+            fault_spi_late,
             fault_serial_corrupt,
             fault_serial_drop,
             fault_serial_duplicate,
@@ -371,6 +377,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             f.spi.drop = fault_spi_drop.unwrap_or(f.spi.drop);
             f.spi.torn = fault_spi_torn.unwrap_or(f.spi.torn);
             f.spi.duplicate = fault_spi_duplicate.unwrap_or(f.spi.duplicate);
+            f.spi.late = fault_spi_late.unwrap_or(f.spi.late);
             f.serial.corrupt = fault_serial_corrupt.unwrap_or(f.serial.corrupt);
             f.serial.drop = fault_serial_drop.unwrap_or(f.serial.drop);
             f.serial.duplicate = fault_serial_duplicate.unwrap_or(f.serial.duplicate);

@@ -558,6 +558,9 @@ fn a_master_late_to_release_chip_select_imagines_no_slave_reset() {
     assert_eq!(faulty.slave_reset_told_s, None);
     assert_eq!(faulty.master_view_matches_slave, Some(true));
     assert!(faulty.arrived && faulty.distance_to_goal_m < GOAL_TOLERANCE_M);
+    // Driven as the clean run was, the slave (which never waited) ends bit for bit where it did.
+    let check = emulator::fault_check(&scenario, &opts, &faulty).unwrap();
+    assert!(check.same_motion_equals_clean, "{check:?}");
 }
 
 /// A slave late to re-arm sends its previous frame again (the only duplicate a synchronous bus

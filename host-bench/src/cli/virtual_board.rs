@@ -99,6 +99,15 @@ pub struct VirtualBoardArgs {
         allow_negative_numbers = true
     )]
     pub fault_spi_duplicate: f64,
+    /// Fault injection: the probability per SPI transaction, [0, 1), that the master is late
+    /// to release chip select, by 3 ms (another of its tasks held the CPU).
+    #[arg(
+        long,
+        value_name = "RATE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub fault_spi_late: f64,
     /// Fault injection: reset the slave this many seconds after the board started; it runs
     /// again from power-on 5 ms later (a `play` or `record` then stops and says so).
     #[arg(long, value_name = "SECS", allow_negative_numbers = true)]
@@ -245,6 +254,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
         ("--fault-spi-drop", a.fault_spi_drop),
         ("--fault-spi-torn", a.fault_spi_torn),
         ("--fault-spi-duplicate", a.fault_spi_duplicate),
+        ("--fault-spi-late", a.fault_spi_late),
     ] {
         if !(0.0..1.0).contains(&rate) {
             bail!("{name} is a probability per frame, in [0, 1): got {rate}");
@@ -265,6 +275,7 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     opts.faults.spi.drop = a.fault_spi_drop;
     opts.faults.spi.torn = a.fault_spi_torn;
     opts.faults.spi.duplicate = a.fault_spi_duplicate;
+    opts.faults.spi.late = a.fault_spi_late;
     if let Some(t) = a.fault_slave_reset_at {
         if !(0.0..=host_bench::sim::emulator::MAX_DURATION_S).contains(&t) {
             bail!(

@@ -71,7 +71,13 @@ pub fn summary_text(s: &Summary) -> String {
         spir = s.spi_frames_rejected,
         inj = {
             let i = &s.spi_injected;
-            if i.corrupted_to_master + i.corrupted_to_slave + i.dropped + i.torn + i.duplicated > 0
+            if i.corrupted_to_master
+                + i.corrupted_to_slave
+                + i.dropped
+                + i.torn
+                + i.duplicated
+                + i.late
+                > 0
             {
                 let mut torn = if i.torn > 0 {
                     format!(", {} torn", i.torn)
@@ -80,6 +86,9 @@ pub fn summary_text(s: &Summary) -> String {
                 };
                 if i.duplicated > 0 {
                     torn += &format!(", {} sent twice by a slave late to re-arm", i.duplicated);
+                }
+                if i.late > 0 {
+                    torn += &format!(", {} with chip select released late", i.late);
                 }
                 let (m, sl) = (&s.spi_rejected_kinds_master, &s.spi_rejected_kinds_slave);
                 let rep = if m.repeated > 0 {
@@ -121,7 +130,7 @@ pub fn summary_text(s: &Summary) -> String {
     );
     let faults = match &s.fault_check {
         Some(c) => format!(
-            "vs clean run    closed loop: the slave's pose ends {:.3} mm from the clean run's (the master steered on older frames while they were lost); driven through the clean run's duties with the same faults: {}, the master's view {}\n",
+            "vs clean run    closed loop: the slave's pose ends {:.3} mm from the clean run's (the master steered on older frames while the faults held new ones back); driven through the clean run's duties with the same faults: {}, the master's view {}\n",
             c.closed_loop_apart_m * 1e3,
             if c.same_motion_equals_clean {
                 "the slave's pose equals the clean run's bit for bit"

@@ -108,6 +108,7 @@ struct RawFaults {
     spi_drop: Option<Spanned<f64>>,
     spi_torn: Option<Spanned<f64>>,
     spi_duplicate: Option<Spanned<f64>>,
+    spi_late: Option<Spanned<f64>>,
     serial_corrupt: Option<Spanned<f64>>,
     serial_drop: Option<Spanned<f64>>,
     serial_duplicate: Option<Spanned<f64>>,
@@ -376,6 +377,9 @@ impl TomlFile<'_> {
             }
             if let Some(v) = &f.spi_duplicate {
                 faults.spi.duplicate = rate(v, "faults.spi_duplicate")?;
+            }
+            if let Some(v) = &f.spi_late {
+                faults.spi.late = rate(v, "faults.spi_late")?;
             }
             let serial = [
                 (

@@ -171,6 +171,7 @@ pub fn check_options(opts: &Options) -> Result<()> {
         ("--fault-spi-drop", opts.faults.spi.drop),
         ("--fault-spi-torn", opts.faults.spi.torn),
         ("--fault-spi-duplicate", opts.faults.spi.duplicate),
+        ("--fault-spi-late", opts.faults.spi.late),
         ("--fault-serial-corrupt", opts.faults.serial.corrupt),
         ("--fault-serial-drop", opts.faults.serial.drop),
         ("--fault-serial-duplicate", opts.faults.serial.duplicate),
