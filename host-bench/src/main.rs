@@ -104,7 +104,7 @@ enum Command {
         #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
         fault_spi_corrupt: Option<f64>,
         /// Fault injection: the probability per SPI transaction, [0, 1), that it is lost
-        /// whole (the master reads an idle line, the slave sees nothing). With either SPI fault
+        /// whole (the master reads an idle line, the slave sees nothing). With any SPI fault
         /// on, the run is also compared with the clean run, and made again driven through the
         /// clean run's duties: the slave's pose must then end bit for bit at the clean run's
         /// (`fault_check` in --json).

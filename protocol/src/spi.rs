@@ -26,6 +26,12 @@ pub const SPI_CLOCK_HZ: u32 = 4_500_000;
 
 /// Bytes per SPI transaction, each way (228 µs at [`SPI_CLOCK_HZ`]).
 pub const SPI_FRAME_LEN: usize = 128;
+
+/// A frame's time on the wire at `clock_hz`, rounded up to a microsecond: from the first bit
+/// clocked to the last (what the master dates an exchange by, and the emulator waits).
+pub const fn frame_time_us(clock_hz: u32) -> u64 {
+    (SPI_FRAME_LEN as u64 * 8 * 1_000_000).div_ceil(clock_hz as u64)
+}
 /// The check at the end of every frame, bytes.
 pub const SPI_CHECK_LEN: usize = 4;
 /// Bytes available to the postcard payload (after the kind byte, before the check).

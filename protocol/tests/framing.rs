@@ -443,3 +443,10 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_frame_takes_its_bits_at_the_clock_rounded_up_to_a_microsecond() {
+    // 128 bytes at 4.5 MHz: 227.6 µs, which the master dates an exchange's end by.
+    assert_eq!(spi::frame_time_us(spi::SPI_CLOCK_HZ), 228);
+    assert_eq!(spi::frame_time_us(1_024_000), 1_000); // exact: no rounding up
+}

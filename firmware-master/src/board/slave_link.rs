@@ -18,8 +18,8 @@ use super::Irqs;
 /// inside the 500 us stream poll period with room for the slave to re-arm, a quarter of the
 /// slave's 18 MHz limit, and slow enough for a few centimetres of wire between the boards.
 const SCK_HZ: u32 = protocol::spi::SPI_CLOCK_HZ;
-/// A frame's time on the wire at `SCK_HZ`, rounded up to the clock's microsecond.
-const FRAME_US: u64 = (SPI_FRAME_LEN as u64 * 8 * 1_000_000).div_ceil(SCK_HZ as u64);
+/// A frame's time on the wire at `SCK_HZ`.
+const FRAME_US: u64 = protocol::spi::frame_time_us(SCK_HZ);
 
 /// Delay between chip select going low and the first clock edge, in CPU cycles (~5 us at
 /// 72 MHz). The slave's NSS must be seen low before clocking starts; this also leaves a margin

@@ -22,8 +22,9 @@ impl Controller {
         }
     }
 
-    /// The outcome of an SPI poll.
-    pub fn on_slave_frame(&mut self, now: Instant, frame: Result<SlaveFrame, SpiFrameError>) {
+    /// The outcome of an SPI poll that ended at `end`: when its last bit was clocked, the
+    /// instant the slave re-arms from ([`crate::ports::SlaveBus::exchange`]).
+    pub fn on_slave_frame(&mut self, end: Instant, frame: Result<SlaveFrame, SpiFrameError>) {
         let armed_at = self.prev_good_exchange_end.take();
         // A frame armed at the same instant as the last one read is that frame again: a
         // slave late to re-arm sends it twice. Nothing in it is new, and its arming was not
@@ -42,7 +43,7 @@ impl Controller {
             return;
         };
         self.counters.spi_ok = self.counters.spi_ok.wrapping_add(1);
-        self.prev_good_exchange_end = Some(now);
+        self.prev_good_exchange_end = Some(end);
         if let Some(armed_at) = armed_at {
             let offset = (armed_at.as_micros() as u32).wrapping_sub(f.armed_us);
             // The boards' crystals drift by parts per million: an offset that jumps by
@@ -74,20 +75,20 @@ impl Controller {
         }
         // A recording's reports come and go; stay in streaming mode across short pauses.
         if !f.reports.bytes.is_empty() || self.relay.busy() {
-            self.last_stream_at = Some(now);
+            self.last_stream_at = Some(end);
         }
-        self.stream_recent = us_since(now, self.last_stream_at) < 100_000;
+        self.stream_recent = us_since(end, self.last_stream_at) < 100_000;
         self.relay.on_slave_frame(&f);
         // A frame whose seq did not move means the slave's odometry loop is stuck: the SPI
         // peripheral still answers, but with stale data. Only moving frames count as alive.
         let fresh = self.slave.is_none_or(|(prev, _)| prev.seq != f.seq);
         if fresh {
-            self.last_fresh_slave = Some(now);
+            self.last_fresh_slave = Some(end);
         }
         // Until the slave has applied every queued command (a set-pose among them), its poses
         // may be from before them.
         if self.commands.is_empty() {
-            let sampled = self.sample_time(now, &f);
+            let sampled = self.sample_time(end, &f);
             self.slave = Some((f, sampled));
         }
     }

@@ -187,6 +187,10 @@ pub struct SpiWire {
     last_from_slave: Option<([u8; SPI_FRAME_LEN], bool)>,
 }
 
+/// How much longer a late master holds chip select ([`SpiFaults::late`]): over the controller's
+/// 2 ms threshold for a slave clock that jumped (a slave reset).
+pub const LATE_CS: Duration = Duration::from_millis(3);
+
 /// Fault rates on the SPI wire, each a probability per transaction in [0, 1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct SpiFaults {
@@ -293,7 +297,7 @@ impl SpiWire {
 
 /// Time one transaction (`SPI_FRAME_LEN` bytes) takes at the master's SPI clock.
 pub fn spi_transfer_time(clock_hz: u32) -> Duration {
-    Duration::from_micros((SPI_FRAME_LEN as u64 * 8 * 1_000_000).div_ceil(clock_hz as u64))
+    Duration::from_micros(protocol::spi::frame_time_us(clock_hz))
 }
 
 impl SpiWire {
@@ -368,10 +372,6 @@ impl SlaveBus for EmuMasterBus {
         Ok(start + self.transfer_time)
     }
 }
-
-/// How much longer a late master holds chip select ([`SpiFaults::late`]): over the controller's
-/// 2 ms threshold for a slave clock that jumped (a slave reset).
-pub const LATE_CS: Duration = Duration::from_millis(3);
 
 impl EmuMasterBus {
     /// The bytes of one transaction, the wire's faults done to them, once its last bit went.
