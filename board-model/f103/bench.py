@@ -225,14 +225,7 @@ def report(chip, sim_ticks, wall):
 
 
 def cmd_boot(args):
-    bench = Bench(
-        args.slave,
-        args.master,
-        slice_us=args.slice_us,
-        cpi=args.cpi,
-        log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None,
-        boards=args.boards,
-    )
+    bench = _bench_for(args, boards=args.boards)
     _schedule_resets(bench, args)
     ticks = int(args.ms * 1e-3 * Chip.TICK_HZ)
     t0 = time.perf_counter()

@@ -40,8 +40,6 @@ from unicorn import (
 from unicorn.arm_const import (
     UC_CPU_ARM_CORTEX_M3,
     UC_ARM_REG_PC,
-    UC_ARM_REG_PRIMASK,
-    UC_ARM_REG_BASEPRI,
 )
 
 from . import native
@@ -453,13 +451,18 @@ class Chip(ExceptionModel, ResetModel):
         slice's end. (One pended while masked still waits for the slice's end: the CPU
         unmasks without a register access.)"""
         fast = self.fast
-        if not self._in_slice or fast.limit is None or not self.nvic.pending:
-            return
-        if self.nvic.takeable(0, 0) is None:
-            return
-        primask, basepri = fast.regs(REGS_MASKS)
-        if self.nvic.takeable(primask, basepri) is not None:
+        if self._in_slice and fast.limit is not None and self._takeable_now() is not None:
             fast.limit.value = fast.counter.value
+
+    def _takeable_now(self):
+        """The exception the CPU takes at its next instruction, with PRIMASK and BASEPRI as they
+        are, or None. (Most of the time nothing is pending, or nothing would be taken even
+        unmasked: then the core's registers are not read.)"""
+        nv_ = self.nvic
+        if not nv_.pending or nv_.takeable(0, 0) is None:
+            return None
+        primask, basepri = self.fast.regs(REGS_MASKS)
+        return nv_.takeable(primask, basepri)
 
     def next_event(self):
         if self._next_cache is None:
@@ -549,16 +552,11 @@ class Chip(ExceptionModel, ResetModel):
 
     def _service(self):
         """At a slice boundary: take an interrupt that can be taken."""
-        nv_ = self.nvic
-        if nv_.pending and nv_.takeable(0, 0) is not None:
-            primask = self.fast.reg(UC_ARM_REG_PRIMASK)
-            basepri = self.fast.reg(UC_ARM_REG_BASEPRI) if not primask else 0
-            e = nv_.takeable(primask, basepri)
-            if e is not None:
-                if self.sleeping:
-                    self.sleeping = False
-                self._enter(e, self.pc)
-                self.pc = self.fast.reg(UC_ARM_REG_PC) & ~1
+        e = self._takeable_now()
+        if e is not None:
+            self.sleeping = False
+            self._enter(e, self.pc)
+            self.pc = self.fast.reg(UC_ARM_REG_PC) & ~1
 
     def wake_time(self, limit):
         """When this board next needs the CPU, if it sleeps now (else its own time)."""

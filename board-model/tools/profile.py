@@ -34,6 +34,7 @@ from unicorn import UC_HOOK_BLOCK  # noqa: E402
 
 from f103.bench import Bench, IMAGES, main as bench_main  # noqa: E402
 from f103.core import Chip  # noqa: E402
+from f103.elf import InputError  # noqa: E402
 from f103 import ucfast  # noqa: E402
 
 
@@ -50,6 +51,32 @@ def functions(path):
     return sorted(funcs)
 
 
+def run_with(a, hook):
+    """Both boards run as --play or --ms say, `hook(bench)` called on the bench first; the
+    bench, or play-check's non-zero status."""
+    benches = []
+
+    def on_bench(bench):
+        benches.append(bench)
+        hook(bench)
+
+    if a.play:
+        argv = ["play-check", "--ticks", a.play, "--slave", image(a, "slave")]
+        argv += ["--master", image(a, "master"), "--"] + a.play_args
+        rc = bench_main(argv, on_bench=on_bench)
+        if rc:
+            return rc
+    else:
+        bench = Bench(image(a, "slave"), image(a, "master"))
+        on_bench(bench)
+        bench.run(int(a.ms * 1e-3 * Chip.TICK_HZ))
+    return benches[0]
+
+
+def image(a, name):
+    return getattr(a, name) or os.path.join(IMAGES, f"firmware-{name}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ms", type=float, default=150.0, help="simulated time from reset")
@@ -62,10 +89,6 @@ def main():
     a = ap.parse_args()
     if a.wall:
         return wall_split(a)
-    paths = {
-        "slave": a.slave or os.path.join(IMAGES, "firmware-slave"),
-        "master": a.master or os.path.join(IMAGES, "firmware-master"),
-    }
     bytes_at = {}
 
     def hook(bench):
@@ -78,20 +101,12 @@ def main():
 
             chip.uc.hook_add(UC_HOOK_BLOCK, on_block)
 
-    if a.play:
-        argv = ["play-check", "--ticks", a.play, "--slave", paths["slave"]]
-        argv += ["--master", paths["master"], "--"] + a.play_args
-        rc = bench_main(argv, on_bench=hook)
-        if rc:
-            return rc
-        what = f"from reset to the end of a play of {a.play}"
-    else:
-        bench = Bench(a.slave, a.master)
-        hook(bench)
-        bench.run(int(a.ms * 1e-3 * Chip.TICK_HZ))
-        what = f"in {a.ms:g} simulated ms"
+    bench = run_with(a, hook)
+    if isinstance(bench, int):
+        return bench
+    what = f"from reset to the end of a play of {a.play}" if a.play else f"in {a.ms:g} simulated ms"
     for name, seen in bytes_at.items():
-        funcs = functions(paths[name])
+        funcs = functions(image(a, name))
         starts = [f[0] for f in funcs]
         per = collections.Counter()
         for addr, n in seen.items():
@@ -141,10 +156,8 @@ def wall_split(a):
         return mmio_map(self, address, size, r, w, page)
 
     ucfast.FastUc.mmio_map = timed_map
-    sims = []
 
     def hook(bench):
-        sims.append(bench)
         for chip in bench.boards.values():
             start = chip.uc.emu_start
 
@@ -159,17 +172,10 @@ def wall_split(a):
             chip.uc.emu_start = emu_start
 
     t0 = clock()
-    if a.play:
-        argv = ["play-check", "--ticks", a.play, "--", *a.play_args]
-        rc = bench_main(argv, on_bench=hook)
-        if rc:
-            return rc
-    else:
-        bench = Bench(a.slave, a.master)
-        hook(bench)
-        bench.run(int(a.ms * 1e-3 * Chip.TICK_HZ))
+    bench = run_with(a, hook)
+    if isinstance(bench, int):
+        return bench
     wall = clock() - t0
-    bench = sims[0]
     sim_s = bench.now / Chip.TICK_HZ
     instr = sum(c.instructions for c in bench.boards.values())
     in_uc = t["emu"] - t["cb"] - t["trap"]
@@ -190,4 +196,8 @@ def wall_split(a):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except InputError as e:
+        print(f"profile: error: {e}", file=sys.stderr)
+        sys.exit(2)
