@@ -165,6 +165,11 @@ enum Command {
             default_value = "ideal"
         )]
         edges: String,
+        /// `exact` learns each encoder's four quadrature edges while it moves, with time
+        /// stamps (the host's alone: the slave's image has no room for it yet). On
+        /// `replay`: `--algorithm exact+edges`.
+        #[arg(long)]
+        learn_edges: bool,
     },
     /// Yan (2013)'s speed envelope of the three-omni drive: top translation speed in every
     /// direction and with spin, from the model and driven flat out on the simulated robot,
@@ -205,7 +210,10 @@ enum Command {
         /// Tick stream file (.csv or .csv.gz).
         #[arg(long, value_name = "FILE")]
         ticks: PathBuf,
-        /// Estimator to run, or `all`.
+        /// Estimator to run (arc, lut, timing, exact; exact-f64, exact's float twin), or
+        /// `all`. `exact+edges` (or `exact-f64+edges`): `exact` learning each encoder's four
+        /// quadrature edges while it moves, with time stamps (the host's alone: the slave's
+        /// image has no room for it yet).
         #[arg(long, default_value = "all")]
         algorithm: String,
         /// Write each algorithm's track (truth, estimate, error at every truth row) as
@@ -497,7 +505,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             seeds,
             edges,
-        } => cli::analyse::run_accuracy(json, out, seeds, &edges),
+            learn_edges,
+        } => cli::analyse::run_accuracy(json, out, seeds, &edges, learn_edges),
         Command::Envelope { json, out } => cli::envelope::run_envelope(json, out),
         Command::PursuitSweep {
             json,

@@ -147,3 +147,37 @@ fn an_unknown_preset_is_refused_with_the_choices() {
     let e = EdgeErrors::preset("typcial").unwrap_err().to_string();
     assert!(e.contains("must be ideal, typical, max"), "{e}");
 }
+
+#[test]
+fn exact_learning_its_edges_holds_on_uneven_ones() {
+    // An arc at constant twist from power-on on the datasheet's maximum cycle errors: `exact`
+    // taking the edges a count apart against `exact+edges` learning them (and placing each
+    // wheel's start again on them), over seeds; and the learner's integer arithmetic against
+    // its f64 twin fed the same learned positions.
+    use host_bench::eval::replay::{replay, Mode};
+    let r = robot("seed001.toml");
+    let arc = Constant {
+        twist: Twist::new(0.3, 0.0, 0.4),
+        duration: 4.0,
+    };
+    let (mut plain, mut learned) = (Vec::new(), Vec::new());
+    for seed in 0..6 {
+        let stream = generate(&r, None, &arc, &with_edges("max-cycle", seed)).unwrap();
+        let score = |name: &str| replay(&r, &stream, name, Mode::Timestamps).unwrap();
+        let (p, l) = (score("exact"), score("exact+edges"));
+        let twin = score("exact-f64+edges");
+        assert!(
+            (l.max_error_m - twin.max_error_m).abs() < 1e-6,
+            "seed {seed}: {} vs its twin {}",
+            l.max_error_m,
+            twin.max_error_m
+        );
+        plain.push(p.median_error_m);
+        learned.push(l.median_error_m);
+    }
+    let worst = |v: &[f64]| v.iter().cloned().fold(0.0, f64::max);
+    assert!(
+        worst(&learned) < 0.25 * worst(&plain),
+        "median error, worst seed: learned {learned:?} against {plain:?}"
+    );
+}

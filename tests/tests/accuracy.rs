@@ -9,7 +9,8 @@ use host_bench::sim::trajectory;
 fn results() -> &'static [CaseResult] {
     static R: OnceLock<Vec<CaseResult>> = OnceLock::new();
     R.get_or_init(|| {
-        accuracy::run(accuracy::DEFAULT_SEEDS, Default::default(), |_| {}).expect("accuracy runs")
+        accuracy::run(accuracy::DEFAULT_SEEDS, Default::default(), false, |_| {})
+            .expect("accuracy runs")
     })
 }
 

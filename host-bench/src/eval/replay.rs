@@ -38,6 +38,9 @@ const _: () = assert!(ALGORITHMS.len() == Method::ALL.len());
 /// Also accepted by [`replay`]: `exact`'s f64 twin, fed the same (interpolated) counts, for
 /// checking the fixed-point version against it.
 pub const ORACLE: &str = "exact-f64";
+/// Added to `exact` (or its twin): it learns each encoder's four quadrature edges while it
+/// moves (`Odometry::set_edge_learning`; the slave's image cannot yet).
+pub const LEARNED_EDGES: &str = "+edges";
 
 /// How the estimator sees the encoders.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -258,23 +261,41 @@ fn replay_tracked(
     // first; other callers get the same message).
     check_events(robot, stream).map_err(|e| anyhow::Error::msg(e.message))?;
     check_scorable(stream, mode)?;
-    let (mut estimator, n) = estimator(robot, stream, algorithm, mode)?;
+    let (mut estimator, n, learn) = estimator(robot, stream, algorithm, mode)?;
     let est = estimator.as_mut();
     let mut score = Scorer {
         keep_track,
         ..Scorer::default()
     };
-    drive(robot, stream, mode, n, est, Samples::Changed, &mut score)?;
+    let wheels = Wheels { n, learn };
+    drive(
+        robot,
+        stream,
+        mode,
+        wheels,
+        est,
+        Samples::Changed,
+        &mut score,
+    )?;
     score.finish(algorithm)
 }
 
-/// `algorithm` for `robot`, started at the stream's first truth row, and its encoder count.
+/// `algorithm` for `robot`, started at the stream's first truth row, its encoder count, and
+/// whether it learns the edges ([`LEARNED_EDGES`]).
 fn estimator(
     robot: &Robot,
     stream: &TickStream,
     algorithm: &str,
     mode: Mode,
-) -> Result<(Box<dyn Estimator>, usize)> {
+) -> Result<(Box<dyn Estimator>, usize, bool)> {
+    let (algorithm, learn) = match algorithm.strip_suffix(LEARNED_EDGES) {
+        Some(base @ ("exact" | ORACLE)) => (base, true),
+        Some(_) => bail!("only `exact` and `{ORACLE}` learn edges (`{algorithm}`)"),
+        None => (algorithm, false),
+    };
+    if learn && mode != Mode::Timestamps {
+        bail!("`{algorithm}{LEARNED_EDGES}` learns from time-stamped ticks, not sampled counts");
+    }
     if let Mode::Counts { rate_hz } = mode {
         check_counts_rate(rate_hz)?;
     }
@@ -322,7 +343,7 @@ fn estimator(
             Mode::Timestamps => SensorKind::Ticks,
             Mode::Counts { .. } => SensorKind::Counts,
         };
-        let odo = Odometry::new(
+        let mut odo = Odometry::new(
             &layout,
             method,
             sensors,
@@ -332,6 +353,7 @@ fn estimator(
             abs0,
         )
         .map_err(|e| anyhow::anyhow!("robot {}: {e}", robot.name))?;
+        odo.set_edge_learning(learn);
         // Seed 001 keeps coordinates unsigned (about 42.9 m of range at 10^-8 m): like the
         // paper, put the field origin so the whole run stays positive, 1 m inside the square.
         if method == Method::Lut {
@@ -340,7 +362,15 @@ fn estimator(
             Box::new(odo)
         }
     };
-    Ok((estimator, n))
+    Ok((estimator, n, learn))
+}
+
+/// The walk's own wheel trackers (what `exact`'s f64 twin reads): how many, and whether they
+/// learn their edges as `exact` does.
+#[derive(Clone, Copy)]
+struct Wheels {
+    n: usize,
+    learn: bool,
 }
 
 /// Which fixed-rate samples [`drive`] hands to the estimator.
@@ -364,13 +394,14 @@ fn drive(
     robot: &Robot,
     stream: &TickStream,
     mode: Mode,
-    n: usize,
+    Wheels { n, learn }: Wheels,
     est: &mut dyn Estimator,
     samples: Samples,
     score: &mut Scorer,
 ) -> Result<()> {
     let t0 = stream.events.first().map_or(0, |e| e.t_ns());
     let mut wheels = [TickTracker::starting(0, t0); MAX_ENCODERS];
+    wheels.iter_mut().for_each(|w| w.set_edge_learning(learn));
     let period_ns = mode.period_ns();
     let interpolate = period_ns.is_none();
     // With counts, the next fixed-rate sample; `None` once it would be at 2^64 ns or later,
@@ -433,6 +464,10 @@ fn drive(
             None => ticked || has_truth,
         };
         if due {
+            if interpolate {
+                // What `exact` does at its update: its f64 twin reads these wheels.
+                wheels[..n].iter_mut().for_each(TickTracker::learn);
+            }
             pose = Some(est.update(t, &wheels, interpolate));
             changed = false;
         }
@@ -543,13 +578,14 @@ mod tests {
                         continue;
                     }
                     let run = |samples| {
-                        let (mut est, n) = estimator(&r, &stream, algorithm, mode).unwrap();
+                        let (mut est, n, learn) = estimator(&r, &stream, algorithm, mode).unwrap();
                         let mut score = Scorer {
                             keep_track: true,
                             ..Scorer::default()
                         };
                         let est = est.as_mut();
-                        drive(&r, &stream, mode, n, est, samples, &mut score).unwrap();
+                        let wheels = Wheels { n, learn };
+                        drive(&r, &stream, mode, wheels, est, samples, &mut score).unwrap();
                         score
                     };
                     let (every, changed) = (run(Samples::Every), run(Samples::Changed));

@@ -74,6 +74,9 @@ pub struct Odometry {
     recent: [RecentTicks; MAX_ENCODERS],
     /// Ticks mode with `exact` running: placed wheels' ticks wait in `recent`.
     keep_edges: bool,
+    /// `exact` learns each encoder's quadrature edges (`set_edge_learning`, with the
+    /// `edge-learning` feature; always false without it).
+    learn_edges: bool,
     /// Cumulative whole counts (zero past the layout's encoders).
     counts: [i64; MAX_ENCODERS],
     /// What `exact` saw of each wheel at the last update, Q16 counts (zero past the layout's
@@ -125,6 +128,7 @@ impl Odometry {
                 trackers: [TickTracker::starting(0, 0); MAX_ENCODERS],
                 recent: [RecentTicks::default(); MAX_ENCODERS],
                 keep_edges: false,
+                learn_edges: false,
                 counts: [0; MAX_ENCODERS],
                 positions: [0; MAX_ENCODERS],
                 abs: 0,
@@ -188,6 +192,8 @@ impl Odometry {
             // first `set_counts` would integrate a move from there back to zero.
             self.positions[j] = c.wrapping_shl(16);
             self.trackers[j] = TickTracker::starting(c, t_ns);
+            #[cfg(feature = "edge-learning")]
+            self.trackers[j].set_edge_learning(self.learn_edges);
             self.recent[j] = RecentTicks::default();
         }
         self.abs = match (self.layout.abs(), abs_code) {
@@ -282,6 +288,18 @@ impl Odometry {
         Ok(())
     }
 
+    /// With time-stamped ticks, `exact` learns where each encoder really puts the four edges
+    /// of its quadrature cycle while it moves, interpolates on them and, once it knows them,
+    /// places each wheel's start again on them ([`crate::ticks::edges`]). Off by default: the
+    /// slave image has no room for it yet, and board and host must run the same arithmetic.
+    #[cfg(feature = "edge-learning")]
+    pub fn set_edge_learning(&mut self, on: bool) {
+        self.learn_edges = on;
+        for t in &mut self.trackers {
+            t.set_edge_learning(on);
+        }
+    }
+
     /// What `exact` sees of each wheel, Q16 counts: interpolated between ticks at `t_ns` with
     /// time stamps, the whole counts otherwise; zero past the encoders. Integer-only.
     fn positions_q16(&self, t_ns: u64) -> [i64; MAX_ENCODERS] {
@@ -306,6 +324,7 @@ impl Odometry {
             if recent.any() {
                 tracker.catch_up(count, recent);
             }
+            tracker.learn();
             *p = tracker.position_q16(t_ns);
         }
     }

@@ -23,9 +23,13 @@
 //!
 //! Integer-only: times in nanoseconds, positions in Q16 counts.
 
+pub mod edges;
 mod recent;
 pub mod start;
 
+#[cfg(feature = "edge-learning")]
+use edges::WINDOW;
+pub use edges::{EdgeTable, Learner};
 pub use recent::RecentTicks;
 
 use core::num::NonZeroU64;
@@ -58,7 +62,18 @@ pub struct TickTracker {
     phase_q16: i64,
     /// A fit of the wheel's own first ticks placed it.
     placed: bool,
+    /// How many of `first` were gathered (one way).
+    #[cfg(feature = "edge-learning")]
+    gathered: u8,
+    /// The count at power-on (the first ticks' edges follow from it).
+    #[cfg(feature = "edge-learning")]
+    start_count: i64,
+    /// The encoder's edges, as learned so far ([`edges`]).
+    learner: Learner,
 }
+/// Windows learned before a wheel's start is fitted again on its learned edges.
+#[cfg(feature = "edge-learning")]
+const REPLACE_AFTER: u8 = edges::SETTLED / 2;
 
 /// The interpolated fraction never reaches a whole step: 1 - 2^-16.
 /// A wheel's first ticks in one direction that place it inside its count (fits of degree 1 to
@@ -97,6 +112,11 @@ impl TickTracker {
             first_dir: 0,
             phase_q16: UNKNOWN_PHASE_Q16,
             placed: false,
+            #[cfg(feature = "edge-learning")]
+            gathered: 0,
+            #[cfg(feature = "edge-learning")]
+            start_count: count,
+            learner: Learner::new(),
         }
     }
 
@@ -126,6 +146,7 @@ impl TickTracker {
         } else {
             None
         };
+        self.learner.advance(same_way, self.last_t);
         self.last_t = t_ns;
         self.dir = step;
         // Only a wheel's first ticks: every later one skips the fit's call altogether.
@@ -147,6 +168,10 @@ impl TickTracker {
         *slot = t_ns;
         self.first_dir = step;
         self.first_len += 1;
+        #[cfg(feature = "edge-learning")]
+        {
+            self.gathered = self.first_len;
+        }
         let fitted = self
             .first
             .get(..=n)
@@ -157,6 +182,60 @@ impl TickTracker {
             self.phase_q16 = if step > 0 { u } else { (1 << 16) - u };
             self.placed = true;
         }
+    }
+
+    /// Learn the encoder's edges from the last two cycles, if the last tick completed them
+    /// (at an update: the slave's edges only keep their time). Once the edges are known well
+    /// enough, a wheel its own first ticks placed is placed again, on the edges they really
+    /// crossed. Integer-only.
+    pub fn learn(&mut self) {
+        #[cfg(feature = "edge-learning")]
+        if self.learner.learn(self.last_t, self.edge, self.dir)
+            && self.learner.table().windows() >= REPLACE_AFTER
+            && !self.learner.replaced()
+        {
+            self.replace_start();
+        }
+    }
+
+    /// Learn this wheel's edges from now on ([`learn`](Self::learn)), or not (the default).
+    #[cfg(feature = "edge-learning")]
+    pub fn set_edge_learning(&mut self, on: bool) {
+        self.learner.on = on;
+    }
+
+    /// The start fit again, its first ticks at their learned edges: a wheel its own first
+    /// ticks placed is placed better, and one they could not (an uneven edge made them look
+    /// like an abrupt start) may be placed now.
+    #[cfg(feature = "edge-learning")]
+    #[cold]
+    #[inline(never)]
+    fn replace_start(&mut self) {
+        self.learner.set_replaced();
+        let Some(first) = self.first.get(..self.gathered as usize) else {
+            return;
+        };
+        let d = self.first_dir as i64;
+        // Forward the k-th tick crosses edge c0 + k, backward c0 + 1 − k; along the travel
+        // from the count's first edge's whole-count place (c0 forward, c0 + 1 backward).
+        let first_edge = if d > 0 {
+            self.start_count + 1
+        } else {
+            self.start_count
+        };
+        let places: [i64; PLACING_TICKS] = core::array::from_fn(|k| {
+            let edge = first_edge + d * k as i64;
+            ((k as i64 + 1) << 24) + ((d * self.learner.table().offset_q16(edge)) << 8)
+        });
+        if let Some(u) = start::start_position_on_q16(self.start_ns, first, &places) {
+            self.phase_q16 = if d > 0 { u } else { (1 << 16) - u };
+            self.placed = true;
+        }
+    }
+
+    /// The encoder's edges as learned so far.
+    pub fn edges(&self) -> &EdgeTable {
+        self.learner.table()
     }
 
     /// A wheel its own first ticks could not place, moving at its first interval's speed:
@@ -213,42 +292,54 @@ impl TickTracker {
         self.edge_position_q16(t_ns) - self.phase_q16
     }
 
-    /// Position on the encoder's own scale (edges at whole counts). After a reversal until a
-    /// second tick in the new direction there is no speed to go on: the wheel is taken to be
-    /// at its last edge.
+    /// Position on the encoder's own scale (edges at whole counts, moved by the learned
+    /// offsets). After a reversal until a second tick in the new direction there is no speed to
+    /// go on: the wheel is taken to be at its last edge.
     fn edge_position_q16(&self, t_ns: u64) -> i64 {
+        let at_edge = (self.edge << 16) + self.learner.table().offset_q16(self.edge);
         let Some(interval) = self.interval else {
-            return self.edge << 16;
+            return at_edge;
         };
         // Dividing by the `NonZeroU64` itself: no divide-by-zero panic path reaches the board.
         let (nz, interval) = (interval, interval.get());
         let since = t_ns.saturating_sub(self.last_t);
         if interval >= 1 << 40 {
             // Over 18 minutes between two edges: a stopped wheel.
-            return self.edge << 16;
+            return at_edge;
         }
+        let dir = self.dir;
+        // The last interval's span and the next one's, along the travel (Q16 counts: one count
+        // each on ideal edges).
+        let back = self.edge - dir as i64;
+        let s2 = self.learner.table().span_q16(back, dir);
+        let next = self.learner.table().span_q16(self.edge, dir);
         // x = τ / T2 in Q16, capped at 8 steps' worth of time (well past any clamp below).
         let x = ((since.min(interval * 8) << 16) / nz) as i64;
         let frac = match self.prev_interval {
-            None => x, // one interval only: constant speed
+            None => (s2 * x) >> 16, // one interval only: constant speed
             Some(t1) => {
+                let s1 = self.learner.table().span_q16(back - dir as i64, dir);
                 // ρ = T2 / T1 in Q16, limited to [1/16, 16] so one odd interval cannot
                 // throw the fit far.
                 // `interval < 2^40` (checked above), so the shift fits 64 bits.
                 let rho = ((interval << 16) / t1).clamp(1 << 12, 1 << 20) as i64;
-                // c = (1 − ρ)·ρ / (1 + ρ), Q16.
-                let c = ((1 << 16) - rho) * rho / ((1 << 16) + rho);
-                // Braking: the fitted speed reaches zero at x* = −(1 + c) / (2c); hold there.
+                // The mean speeds s1/T1 and s2/T2 belong to the intervals' midpoints; the
+                // acceleration between them, from the last edge: s(x) = s2·x + c·(x + x²),
+                // c = (s2 − ρ·s1)·ρ / (1 + ρ), Q16 (ideal edges: (1 − ρ)·ρ / (1 + ρ)).
+                let c = (s2 - ((rho * s1) >> 16)) * rho / ((1 << 16) + rho);
+                // Braking: the fitted speed s2 + c·(1 + 2x) reaches zero at
+                // x* = −(s2 + c) / (2c); hold there.
                 let x = if c < 0 {
-                    x.min(((1 << 16) + c) * (1 << 16) / (-2 * c))
+                    x.min((s2 + c) * (1 << 16) / (-2 * c))
                 } else {
                     x
                 };
-                x + ((c * (x + ((x * x) >> 16))) >> 16)
+                ((s2 * x) >> 16) + ((c * (x + ((x * x) >> 16))) >> 16)
             }
         };
-        let frac = frac.clamp(0, MAX_FRACTION);
-        (self.edge << 16) + self.dir as i64 * frac
+        // Never at or past the next edge: no tick has said so.
+        let frac = frac.clamp(0, next - 1);
+        at_edge + dir as i64 * frac
     }
 }
 

@@ -5,23 +5,36 @@
 //! per tick (its edge, its two intervals) is about 70. That work need not be done per tick:
 //! after any run of ticks a tracker's state depends on its count and on its **last three
 //! ticks only** — its edge on the count and the last step, its interval on the last two
-//! ticks' times and directions, its interval before that on the last three's. So the edge
-//! only keeps its time and step in a four-slot ring, and [`TickTracker::catch_up`] replays the
-//! last three (at most) when the wheel's position is next needed: bit for bit what ticking
-//! every one of them would have left, and at most three ticks' work per wheel per update
-//! however fast the wheel turns.
+//! ticks' times and directions, its interval before that on the last three's (with edge
+//! learning, `edge-learning`, on its last nine: the window of two cycles it learns from). So
+//! the edge only keeps its time and step in a ring, and [`TickTracker::catch_up`] replays the
+//! last three (nine) at most when the wheel's position is next needed: bit for bit what
+//! ticking every one of them would have left, and a bounded amount of work per wheel per
+//! update however fast the wheel turns.
 //!
 //! Only for a wheel whose first ticks have placed it ([`TickTracker::placing`] false): while
 //! they are gathered every tick feeds the start fit, which needs each one.
 
 use super::TickTracker;
+#[cfg(feature = "edge-learning")]
+use super::WINDOW;
+
+/// The last ticks replayed: what a tracker's state depends on (three; with edge learning its
+/// window of nine).
+#[cfg(feature = "edge-learning")]
+const REPLAYED: u32 = WINDOW as u32;
+#[cfg(not(feature = "edge-learning"))]
+const REPLAYED: u32 = 3;
+/// The ring's slots: a power of two (the slot is a mask, not a division), at least that many.
+const SLOTS: usize = (REPLAYED as usize).next_power_of_two();
+const MASK: u32 = SLOTS as u32 - 1;
 
 /// One wheel's ticks since its tracker last caught up: a four-slot ring (a power of two, so
 /// the slot is a mask, not a division) of which the last three are used.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RecentTicks {
-    t_ns: [u64; 4],
-    steps: [i8; 4],
+    t_ns: [u64; SLOTS],
+    steps: [i8; SLOTS],
     /// Ticks since the tracker caught up; the next goes to slot `waiting % 4`. A `u32` counted
     /// without a saturating check (a saturating count costs the edge six instructions): it
     /// would wrap after 2³² ticks of one wheel between two updates, which no encoder gives
@@ -37,7 +50,7 @@ impl RecentTicks {
     /// A tick at `t_ns`, `step` ±1 (the caller has checked it).
     #[inline(always)]
     pub fn push(&mut self, t_ns: u64, step: i8) {
-        let k = (self.waiting & 3) as usize;
+        let k = (self.waiting & MASK) as usize;
         self.t_ns[k] = t_ns;
         self.steps[k] = step;
         self.waiting = self.waiting.wrapping_add(1);
@@ -56,18 +69,18 @@ impl TickTracker {
     /// [`tick`](Self::tick)ed every one of them (see the module's comment for why). For a
     /// wheel that is not [`placing`](Self::placing) any more. Integer-only.
     pub fn catch_up(&mut self, count: i64, recent: &mut RecentTicks) {
-        let replayed = recent.waiting.min(3);
+        let replayed = recent.waiting.min(REPLAYED);
         let first = recent.waiting.wrapping_sub(replayed);
         // Emptied: the next tick goes to slot 0.
         recent.waiting = 0;
         // The count before the replayed ticks: their steps taken off the final count.
         let mut before = count;
         for i in 0..replayed {
-            before -= recent.steps[(first.wrapping_add(i) & 3) as usize] as i64;
+            before -= recent.steps[(first.wrapping_add(i) & MASK) as usize] as i64;
         }
         self.count = before;
         for i in 0..replayed {
-            let k = (first.wrapping_add(i) & 3) as usize;
+            let k = (first.wrapping_add(i) & MASK) as usize;
             // An earlier tick's interval, from a state older than its own tick before it, is
             // overwritten by the next two: only the last three ticks' intervals survive.
             self.advance(recent.t_ns[k], recent.steps[k]);
@@ -85,6 +98,7 @@ mod tests {
         /// steps (reversals, runs), random intervals (including equal times), any start.
         #[test]
         fn catching_up_equals_ticking_every_tick(
+            learn in proptest::bool::ANY,
             start in -1000i64..1000,
             ticks in proptest::collection::vec(
                 (0u64..5_000, prop_oneof![Just(1i8), Just(-1i8)], proptest::bool::weighted(0.2)),
@@ -92,6 +106,10 @@ mod tests {
             ),
         ) {
             let mut every = TickTracker::starting(start, 50);
+            #[cfg(feature = "edge-learning")]
+            every.set_edge_learning(learn);
+            #[cfg(not(feature = "edge-learning"))]
+            let _ = learn;
             let mut deferred = every;
             let mut recent = RecentTicks::default();
             let (mut t, mut count) = (100u64, start);
@@ -108,6 +126,8 @@ mod tests {
                     if recent.any() {
                         deferred.catch_up(count, &mut recent);
                     }
+                    deferred.learn();
+                    every.learn();
                     prop_assert_eq!(deferred, every);
                     prop_assert_eq!(deferred.position_q16(t + 37), every.position_q16(t + 37));
                 }

@@ -59,6 +59,16 @@ fn div(a: i64, b: i64) -> Option<i64> {
 /// ticks (2 to 4, one direction, strictly increasing) came at `times` after power-on at
 /// `power_on_ns`; `None` if the fit does not place the start inside the count.
 pub fn start_position_q16(power_on_ns: u64, times: &[u64]) -> Option<i64> {
+    start_position_on_q16(power_on_ns, times, &EVEN)
+}
+
+/// Whole counts apart: the k-th tick one count after the (k−1)-th, Q24.
+const EVEN: [i64; 4] = [ONE, 2 * ONE, 3 * ONE, 4 * ONE];
+
+/// [`start_position_q16`] for ticks at `places` (Q24 counts along the first direction from
+/// the count's first edge's whole-count place: `(k + 1)·ONE` for evenly spaced edges), where an
+/// encoder's learned edges ([`super::edges`]) put them.
+pub fn start_position_on_q16(power_on_ns: u64, times: &[u64], places: &[i64; 4]) -> Option<i64> {
     let n = times.len();
     if !(2..=4).contains(&n) {
         return None;
@@ -86,8 +96,8 @@ pub fn start_position_q16(power_on_ns: u64, times: &[u64]) -> Option<i64> {
     } else {
         -((back << Q).checked_div(span)? as i64)
     };
-    // Newton's divided differences of u_k = k at the nodes (all Q24): a[1..n).
-    let mut dd = [ONE, 2 * ONE, 3 * ONE, 4 * ONE];
+    // Newton's divided differences of u_k = places[k] at the nodes (all Q24): a[1..n).
+    let mut dd = *places;
     let mut a = [0i64; 4];
     for level in 1..n {
         for k in (level..n).rev() {
@@ -97,11 +107,16 @@ pub fn start_position_q16(power_on_ns: u64, times: &[u64]) -> Option<i64> {
         }
         *a.get_mut(level)? = *dd.get(level)?;
     }
-    // Monomials about x = 0: u(x) = 1 + c1 x + c2 x² + c3 x³.
+    // Monomials about x = 0: u(x) = c0 + c1 x + c2 x² + c3 x³.
     let c3 = a[3];
     let c2 = a[2] - mul(c3, x[1] + x[2])?;
     let c1 = a[1] - mul(a[2], x[1])? + mul(mul(c3, x[1])?, x[2])?;
-    let poly = Poly { c1, c2, c3 };
+    let poly = Poly {
+        c0: places[0],
+        c1,
+        c2,
+        c3,
+    };
     if c1 <= 0 {
         return None; // not moving at the first tick
     }
@@ -127,8 +142,9 @@ pub fn start_position_q16(power_on_ns: u64, times: &[u64]) -> Option<i64> {
     Some(((us + (1 << (Q - 17))) >> (Q - 16)).clamp(0, 0xFFFF))
 }
 
-/// `u(x) = 1 + c1 x + c2 x² + c3 x³`, Q24.
+/// `u(x) = c0 + c1 x + c2 x² + c3 x³`, Q24.
 struct Poly {
+    c0: i64,
     c1: i64,
     c2: i64,
     c3: i64,
@@ -137,7 +153,7 @@ struct Poly {
 impl Poly {
     fn at(&self, x: i64) -> Option<i64> {
         let x2 = mul(x, x)?;
-        Some(ONE + mul(self.c1, x)? + mul(self.c2, x2)? + mul(self.c3, mul(x2, x)?)?)
+        Some(self.c0 + mul(self.c1, x)? + mul(self.c2, x2)? + mul(self.c3, mul(x2, x)?)?)
     }
 
     /// `u'(x) = c1 + 2 c2 x + 3 c3 x²`.

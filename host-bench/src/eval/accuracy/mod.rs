@@ -255,6 +255,7 @@ struct Run {
 pub fn run(
     seeds: u64,
     edges: EdgeErrors,
+    learn_edges: bool,
     progress: impl FnMut(&str) + Send,
 ) -> Result<Vec<CaseResult>> {
     let seeds = seeds.max(1);
@@ -283,7 +284,7 @@ pub fn run(
                     break;
                 }
                 let c = job;
-                let out = run_case(&cases[c], &loaded[c], seeds, edges);
+                let out = run_case(&cases[c], &loaded[c], seeds, edges, learn_edges);
                 if let Ok(mut d) = done.lock() {
                     d[job] = Some(out);
                 }
@@ -308,6 +309,9 @@ pub fn run(
             let runs: Vec<&Run> = per_seed.iter().map(|r| &r[m]).collect();
             let mut r = aggregate(case, robot, traj.as_ref(), mode, seeds, &runs)?;
             r.edges = edges.to_string();
+            if learn_edges {
+                r.edges.push_str("; `exact` learning them");
+            }
             results.push(r);
         }
     }
@@ -322,7 +326,13 @@ const SEEDS_PER_PASS: u64 = 8;
 
 /// Seeds `0..seeds` of `case`: their streams, generated [`SEEDS_PER_PASS`] at a time (a
 /// seed's stream is the same whichever pass makes it), each replayed in every mode.
-fn run_case(case: &Case, robot: &Robot, seeds: u64, edges: EdgeErrors) -> Result<CaseRuns> {
+fn run_case(
+    case: &Case,
+    robot: &Robot,
+    seeds: u64,
+    edges: EdgeErrors,
+    learn_edges: bool,
+) -> Result<CaseRuns> {
     let traj = trajectory::build(case.trajectory)
         .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
     let mut runs = Vec::new();
@@ -343,21 +353,36 @@ fn run_case(case: &Case, robot: &Robot, seeds: u64, edges: EdgeErrors) -> Result
         .with_context(|| format!("generating {} for {}", case.trajectory, robot.name))?;
         for (k, s) in streams.iter().enumerate() {
             // Seed 0's tracks are drawn (`accuracy --out`); the others are let go.
-            runs.push(run_seed(robot, s, first + k as u64 == 0)?);
+            runs.push(run_seed(robot, s, first + k as u64 == 0, learn_edges)?);
         }
     }
     Ok(runs)
 }
 
-/// One seed's stream, replayed in every mode; `keep_tracks` for the seed the pictures draw.
-fn run_seed(robot: &Robot, stream: &TickStream, keep_tracks: bool) -> Result<Vec<Run>> {
+/// One seed's stream, replayed in every mode; `keep_tracks` for the seed the pictures draw;
+/// `learn_edges`: `exact` (and its twin) learn the encoders' edges, with time stamps.
+fn run_seed(
+    robot: &Robot,
+    stream: &TickStream,
+    keep_tracks: bool,
+    learn_edges: bool,
+) -> Result<Vec<Run>> {
     let placed_after_s = moving::placed_after_s(stream);
     let mut out = Vec::new();
     for mode in modes() {
         let (mut scores, mut skipped) = (Vec::new(), Vec::new());
+        let learn = learn_edges && mode == Mode::Timestamps;
+        let learning = |name: &str| match learn && name.starts_with("exact") {
+            true => format!("{name}{}", replay::LEARNED_EDGES),
+            false => name.to_string(),
+        };
         for name in replay::ALGORITHMS {
-            match replay::replay(robot, stream, name, mode) {
-                Ok(s) => scores.push(s),
+            match replay::replay(robot, stream, &learning(name), mode) {
+                // Under its own name in the tables: the edges line says it learns.
+                Ok(s) => scores.push(Score {
+                    name: name.to_string(),
+                    ..s
+                }),
                 Err(e) => skipped.push(Skipped {
                     name: name.to_string(),
                     reason: format!("{e:#}"),
@@ -366,7 +391,7 @@ fn run_seed(robot: &Robot, stream: &TickStream, keep_tracks: bool) -> Result<Vec
         }
         let mut vs_f64 = (0.0f64, 0.0f64);
         if let Some(fixed) = scores.iter().find(|s| s.name == "exact") {
-            let twin = replay::replay(robot, stream, replay::ORACLE, mode)?;
+            let twin = replay::replay(robot, stream, &learning(replay::ORACLE), mode)?;
             for ((_, a, _), (_, b, _)) in fixed.track.iter().zip(&twin.track) {
                 vs_f64.0 = vs_f64.0.max(a.distance_to(*b));
                 vs_f64.1 = vs_f64
