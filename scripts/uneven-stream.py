@@ -23,10 +23,12 @@ Usage: python3 scripts/uneven-stream.py --out DIR [--case NAME|all] [--edges typ
 Writes DIR/<case>.toml (the robot) and DIR/<case>-<edges>-<seed>.csv (the stream).
 
        python3 scripts/uneven-stream.py --out DIR --report [--seeds 8] [--host-bench PATH]
+                                        [--learn-edges]
 Writes every case at every edge placement for seeds 0..N-1, replays each with
 `host-bench replay --json` (default target/debug/host-bench) and prints, per case and edge
 placement, each method's maximum error (median and max over the seeds), the best baseline's,
-and exact's ratio to it.
+and exact's ratio to it. With --learn-edges, exact's column is `exact+edges` (exact learning
+each encoder's edges while it moves).
 """
 
 import argparse
@@ -154,10 +156,11 @@ def write(case, edges, seed, out):
     return path
 
 
-def report(out, seeds, host_bench):
+def report(out, seeds, host_bench, learn_edges=False):
     methods = ("arc", "lut", "timing", "exact")
     print(
         f"max error over each path, mm: median / max over {seeds} seeds (power-on phase and state)"
+        + ("; exact learning the edges (exact+edges)" if learn_edges else "")
     )
     print(
         f"{'case':16} {'edges':8} "
@@ -177,6 +180,15 @@ def report(out, seeds, host_bench):
                     check=True,
                 )
                 got = {a["name"]: a["max_error_m"] for a in json.loads(r.stdout)["algorithms"]}
+                if learn_edges:
+                    r = subprocess.run(
+                        [host_bench, "replay", "--ticks", path, "--json"]
+                        + ["--algorithm", "exact+edges"],
+                        capture_output=True,
+                        text=True,
+                        check=True,
+                    )
+                    got["exact"] = json.loads(r.stdout)["algorithms"][0]["max_error_m"]
                 for m in methods:
                     per[m].append(got[m])
                 best = min(got[m] for m in methods if m != "exact")
@@ -198,6 +210,7 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--report", action="store_true")
     ap.add_argument("--seeds", type=int, default=8)
+    ap.add_argument("--learn-edges", action="store_true")
     ap.add_argument(
         "--host-bench",
         default=os.path.join(
@@ -210,7 +223,7 @@ def main():
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     if a.report:
-        report(a.out, a.seeds, a.host_bench)
+        report(a.out, a.seeds, a.host_bench, a.learn_edges)
         return
     for case in CASES if a.case == "all" else [a.case]:
         print(write(case, a.edges, a.seed, a.out))

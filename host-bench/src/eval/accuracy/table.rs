@@ -165,14 +165,14 @@ pub fn summary(results: &[CaseResult]) -> String {
     if let (Some(lo), Some(mid)) = (moving.first(), moving.get(moving.len() / 2)) {
         out.push_str(&format!(
             "exact, tick time stamps, while moving (relative pose error over {} m of path once \
-             every wheel is placed): median error {:.0}x (worst case, worst seed: {} on {}) to \
-             {:.0}x (median case) below the best baseline, on the {} cases where that \
+             every wheel is placed): median error {} (worst case, worst seed: {} on {}) to \
+             {} (median case) below the best baseline, on the {} cases where that \
              baseline's exceeds 10 um on every seed\n",
             super::moving::SEGMENT_M,
-            lo.1,
+            times(lo.1),
             lo.0.case,
             lo.0.robot,
-            mid.1,
+            times(mid.1),
             moving.len()
         ));
     }
@@ -252,4 +252,13 @@ pub fn summary(results: &[CaseResult]) -> String {
         dev_rad
     ));
     out
+}
+
+/// A ratio for the summary: two figures under 10 (a 0.7 must not print as "1x"), whole above.
+fn times(x: f64) -> String {
+    if x < 10.0 {
+        format!("{x:.1}x")
+    } else {
+        format!("{x:.0}x")
+    }
 }
