@@ -30,11 +30,17 @@ const MAX_SKEW: i64 = ONE / 8;
 /// the products below stay inside 64 bits).
 const MAX_WINDOW_NS: u64 = 1 << 32;
 /// The most the two cycles of a window may disagree on an edge's place, Q24 counts: 1/64 of a
-/// count, a tenth of a typical encoder's error.
+/// count (1.4 °e). A step in speed inside the window (its two cycles then disagree by the
+/// step's share of a count) is not measured; nor is a window whose two lines are placed
+/// further apart than that (HEDS-9040's cycle error: 3 °e typical, 5.5 at most; at the
+/// typical, about a quarter of the windows), which slows learning but keeps the lines' error out
+/// of the kinds' offsets. 1/32 measured no better on the accuracy suite (2026-11-29).
 const MAX_DISAGREEMENT: i64 = ONE / 64;
 /// No learned edge is taken further than this from its whole-count place (Q16 counts): 0.4 of
 /// a count, past any datasheet's maximum.
 const MAX_OFFSET_Q16: i32 = 26_214;
+// Two offsets apart keep a span above zero (the interpolation's clamp needs it).
+const _: () = assert!(2 * MAX_OFFSET_Q16 < 1 << 16);
 
 /// The four edges of a wheel's quadrature cycle, as far as its motion has shown them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -74,8 +80,9 @@ impl EdgeTable {
     }
 
     /// Learn from a window of nine ticks one way: `times[i]` the tick over edge
-    /// `last_edge - dir·(8 − i)`, strictly increasing. A window whose motion is not smooth
-    /// enough to measure (see [`MAX_SKEW`]) changes nothing; returns whether it was taken.
+    /// `last_edge - dir·(8 − i)`. A window whose motion is not smooth enough to measure (see
+    /// [`MAX_SKEW`], [`MAX_DISAGREEMENT`]), or whose times are out of order, changes nothing;
+    /// returns whether it was taken.
     pub fn learn(&mut self, times: &[u64; 9], last_edge: i64, dir: i8) -> bool {
         let Some(measured) = measure(times) else {
             return false;
@@ -88,8 +95,11 @@ impl EdgeTable {
             let k = ((first_edge + d * i as i64) & 3) as usize;
             let m = d * m;
             let o = self.offset_q16[k] as i64;
-            // A running mean at first (the n-th window weighs 1/(n+1)), then a fixed gain.
-            let step = (m - o) / (n + 1).min(SETTLED as i64);
+            // A running mean at first (the n-th window weighs 1/(n+1)), then a fixed gain;
+            // rounded to nearest, so the offset does not stop short by up to a gain's worth.
+            let k_gain = (n + 1).min(SETTLED as i64);
+            let diff = m - o;
+            let step = (diff + diff.signum() * (k_gain / 2)) / k_gain;
             self.offset_q16[k] =
                 (o + step).clamp(-MAX_OFFSET_Q16 as i64, MAX_OFFSET_Q16 as i64) as i32;
         }
@@ -120,15 +130,19 @@ fn measure(times: &[u64; 9]) -> Option<[i64; 4]> {
     let c = ((a - ONE / 2) << Q) / ((a * (ONE - a)) >> Q);
     // Deviation of each inner edge from its whole-count place, Q24 counts: 8·p(x_i) − i.
     let mut dev = [0i64; 8];
+    let mut before = 0;
     for (i, d) in dev.iter_mut().enumerate().skip(1) {
         let xi = x(times[i])?;
+        if xi < before {
+            return None; // out of order
+        }
+        before = xi;
         let p = xi + ((c * ((xi * (xi - ONE)) >> Q)) >> Q);
         *d = 8 * p - ((i as i64) << Q);
     }
     // The two cycles' measures of each kind averaged, relative to the first edge's kind (0),
-    // then centred.
-    // Cycles that disagree by more than [`MAX_DISAGREEMENT`] were not one smooth motion (a
-    // step in speed, a bump): nothing is taken from them.
+    // then centred. Cycles that disagree by more than [`MAX_DISAGREEMENT`] were not one smooth
+    // motion (a step in speed, a bump): nothing is taken from them.
     let mut rel = [0i64; 4];
     for (k, r) in rel.iter_mut().enumerate().skip(1) {
         if (dev[k] - dev[k + 4]).abs() > MAX_DISAGREEMENT {
@@ -149,7 +163,7 @@ fn measure(times: &[u64; 9]) -> Option<[i64; 4]> {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Learner {
     /// Learning is on (off by default: the slave cannot, and the host must agree with it).
-    pub on: bool,
+    on: bool,
     /// The eight ticks before the last, oldest first, while they all went the last tick's
     /// way (`run` of them are).
     before: [u64; WINDOW - 1],
@@ -193,6 +207,14 @@ impl Learner {
             self.run = 0;
         }
         self.fresh = self.run == WINDOW as u8 - 1;
+    }
+
+    /// Learning on, or off and what was learned forgotten.
+    pub fn set_on(&mut self, on: bool) {
+        if !on {
+            *self = Learner::new();
+        }
+        self.on = on;
     }
 
     /// Learn from the window the last tick (at `last_t`, over `last_edge`, way `dir`)

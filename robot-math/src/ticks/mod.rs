@@ -71,15 +71,17 @@ pub struct TickTracker {
     /// The encoder's edges, as learned so far ([`edges`]).
     learner: Learner,
 }
+
 /// Windows learned before a wheel's start is fitted again on its learned edges.
 #[cfg(feature = "edge-learning")]
 const REPLACE_AFTER: u8 = edges::SETTLED / 2;
 
-/// The interpolated fraction never reaches a whole step: 1 - 2^-16.
 /// A wheel's first ticks in one direction that place it inside its count (fits of degree 1 to
-/// 3 through 2 to 4 of them): after these its position has no start error left to fix.
+/// 3 through 2 to 4 of them): after these no tick of its own moves its start (on learned
+/// edges, [`TickTracker::learn`] places it once more).
 pub const PLACING_TICKS: usize = 4;
 
+/// A place inside a count never reaches its upper edge: 1 - 2^-16.
 const MAX_FRACTION: i64 = 0xFFFF;
 /// Where a wheel is taken to stand inside its count before its ticks say: the middle, so the
 /// error is at most half a count either way.
@@ -198,10 +200,11 @@ impl TickTracker {
         }
     }
 
-    /// Learn this wheel's edges from now on ([`learn`](Self::learn)), or not (the default).
+    /// Learn this wheel's edges from now on ([`learn`](Self::learn)), or not (the default;
+    /// turned off, what was learned is forgotten: the edges are whole counts again).
     #[cfg(feature = "edge-learning")]
     pub fn set_edge_learning(&mut self, on: bool) {
-        self.learner.on = on;
+        self.learner.set_on(on);
     }
 
     /// The start fit again, its first ticks at their learned edges: a wheel its own first
@@ -216,8 +219,9 @@ impl TickTracker {
             return;
         };
         let d = self.first_dir as i64;
-        // Forward the k-th tick crosses edge c0 + k, backward c0 + 1 − k; along the travel
-        // from the count's first edge's whole-count place (c0 forward, c0 + 1 backward).
+        // Forward the first ticks cross edges c0 + 1, c0 + 2, ..., backward c0, c0 − 1, ...;
+        // their places along the travel from the count's first edge's whole-count place (c0
+        // forward, c0 + 1 backward): k + 1 for the k-th from 0, moved by its learned offset.
         let first_edge = if d > 0 {
             self.start_count + 1
         } else {

@@ -29,13 +29,13 @@ const REPLAYED: u32 = 3;
 const SLOTS: usize = (REPLAYED as usize).next_power_of_two();
 const MASK: u32 = SLOTS as u32 - 1;
 
-/// One wheel's ticks since its tracker last caught up: a four-slot ring (a power of two, so
-/// the slot is a mask, not a division) of which the last three are used.
+/// One wheel's ticks since its tracker last caught up: a ring of [`SLOTS`] of which the last
+/// [`REPLAYED`] are used (four and three; sixteen and nine with edge learning).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RecentTicks {
     t_ns: [u64; SLOTS],
     steps: [i8; SLOTS],
-    /// Ticks since the tracker caught up; the next goes to slot `waiting % 4`. A `u32` counted
+    /// Ticks since the tracker caught up; the next goes to slot `waiting % SLOTS`. A `u32` counted
     /// without a saturating check (a saturating count costs the edge six instructions): it
     /// would wrap after 2³² ticks of one wheel between two updates, which no encoder gives
     /// (4·10¹² edges a second at 1 kHz) and no tick stream holds (the host reads at most 2²²
@@ -136,6 +136,49 @@ mod tests {
                 deferred.catch_up(count, &mut recent);
             }
             prop_assert_eq!(deferred, every);
+        }
+    }
+
+    #[cfg(feature = "edge-learning")]
+    proptest! {
+        /// The same with the edges learned: runs one way at a near-constant speed (so windows
+        /// are measured and the start is fitted again), reversals, updates at random; the
+        /// deferred tracker must equal the one that saw every tick, and it must have learned.
+        #[test]
+        fn catching_up_equals_ticking_every_tick_while_learning(
+            base in 2_000u64..20_000,
+            ticks in proptest::collection::vec(
+                (0u64..40, proptest::bool::weighted(0.02), proptest::bool::weighted(0.15)),
+                200..600,
+            ),
+        ) {
+            let mut every = TickTracker::starting(0, 0);
+            every.set_edge_learning(true);
+            let mut deferred = every;
+            let mut recent = RecentTicks::default();
+            let (mut t, mut count, mut step) = (1_000u64, 0i64, 1i8);
+            for (jitter, reverse, update_here) in ticks {
+                if reverse {
+                    step = -step;
+                }
+                t += base + jitter;
+                count += step as i64;
+                every.tick(t, step);
+                if deferred.placing() {
+                    deferred.tick(t, step);
+                } else {
+                    recent.push(t, step);
+                }
+                if update_here {
+                    if recent.any() {
+                        deferred.catch_up(count, &mut recent);
+                    }
+                    deferred.learn();
+                    every.learn();
+                    prop_assert_eq!(deferred, every);
+                }
+            }
+            prop_assert!(every.edges().windows() > 0, "nothing learned");
         }
     }
 }
