@@ -74,9 +74,6 @@ pub struct Odometry {
     recent: [RecentTicks; MAX_ENCODERS],
     /// Ticks mode with `exact` running: placed wheels' ticks wait in `recent`.
     keep_edges: bool,
-    /// `exact` learns each encoder's quadrature edges (`set_edge_learning`, with the
-    /// `edge-learning` feature; always false without it).
-    learn_edges: bool,
     /// Cumulative whole counts (zero past the layout's encoders).
     counts: [i64; MAX_ENCODERS],
     /// What `exact` saw of each wheel at the last update, Q16 counts (zero past the layout's
@@ -128,7 +125,6 @@ impl Odometry {
                 trackers: [TickTracker::starting(0, 0); MAX_ENCODERS],
                 recent: [RecentTicks::default(); MAX_ENCODERS],
                 keep_edges: false,
-                learn_edges: false,
                 counts: [0; MAX_ENCODERS],
                 positions: [0; MAX_ENCODERS],
                 abs: 0,
@@ -184,6 +180,10 @@ impl Odometry {
         let n = self.layout.encoders();
         self.sensors = sensors;
         self.keep_edges = false;
+        // Kept by the trackers themselves (a field here moved the slave's update by four
+        // instructions): the new ones learn as the old did.
+        #[cfg(feature = "edge-learning")]
+        let learn_edges = self.trackers[0].edge_learning();
         for (j, &count) in counts.iter().enumerate() {
             let c = if j < n { count } else { 0 };
             self.counts[j] = c;
@@ -193,7 +193,7 @@ impl Odometry {
             self.positions[j] = c.wrapping_shl(16);
             self.trackers[j] = TickTracker::starting(c, t_ns);
             #[cfg(feature = "edge-learning")]
-            self.trackers[j].set_edge_learning(self.learn_edges);
+            self.trackers[j].set_edge_learning(learn_edges);
             self.recent[j] = RecentTicks::default();
         }
         self.abs = match (self.layout.abs(), abs_code) {
@@ -294,7 +294,6 @@ impl Odometry {
     /// slave image has no room for it yet, and board and host must run the same arithmetic.
     #[cfg(feature = "edge-learning")]
     pub fn set_edge_learning(&mut self, on: bool) {
-        self.learn_edges = on;
         for t in &mut self.trackers {
             t.set_edge_learning(on);
         }

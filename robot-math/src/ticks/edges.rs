@@ -209,6 +209,10 @@ impl Learner {
         self.fresh = self.run == WINDOW as u8 - 1;
     }
 
+    pub fn on(&self) -> bool {
+        self.on
+    }
+
     /// Learning on, or off and what was learned forgotten.
     pub fn set_on(&mut self, on: bool) {
         if !on {
@@ -232,6 +236,18 @@ impl Learner {
     #[inline(always)]
     pub fn table(&self) -> &EdgeTable {
         &self.table
+    }
+
+    /// [`EdgeTable::offset_q16`] of what was learned.
+    #[inline(always)]
+    pub fn offset_q16(&self, edge: i64) -> i64 {
+        self.table.offset_q16(edge)
+    }
+
+    /// [`EdgeTable::span_q16`] of what was learned.
+    #[inline(always)]
+    pub fn span_q16(&self, from: i64, dir: i8) -> i64 {
+        self.table.span_q16(from, dir)
     }
 
     /// The wheel's start was fitted again on the learned edges (once).
@@ -266,6 +282,18 @@ impl Learner {
     #[inline(always)]
     pub fn table(&self) -> &EdgeTable {
         &EVEN
+    }
+
+    /// Every edge at its whole-count place: constants, so the tracker's arithmetic folds to
+    /// the even-edge one.
+    #[inline(always)]
+    pub fn offset_q16(&self, _edge: i64) -> i64 {
+        0
+    }
+
+    #[inline(always)]
+    pub fn span_q16(&self, _from: i64, _dir: i8) -> i64 {
+        1 << 16
     }
 
     #[inline(always)]

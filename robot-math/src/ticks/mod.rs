@@ -207,6 +207,12 @@ impl TickTracker {
         self.learner.set_on(on);
     }
 
+    /// This wheel learns its edges.
+    #[cfg(feature = "edge-learning")]
+    pub fn edge_learning(&self) -> bool {
+        self.learner.on()
+    }
+
     /// The start fit again, its first ticks at their learned edges: a wheel its own first
     /// ticks placed is placed better, and one they could not (an uneven edge made them look
     /// like an abrupt start) may be placed now.
@@ -229,7 +235,7 @@ impl TickTracker {
         };
         let places: [i64; PLACING_TICKS] = core::array::from_fn(|k| {
             let edge = first_edge + d * k as i64;
-            ((k as i64 + 1) << 24) + ((d * self.learner.table().offset_q16(edge)) << 8)
+            ((k as i64 + 1) << 24) + ((d * self.learner.offset_q16(edge)) << 8)
         });
         if let Some(u) = start::start_position_on_q16(self.start_ns, first, &places) {
             self.phase_q16 = if d > 0 { u } else { (1 << 16) - u };
@@ -300,7 +306,7 @@ impl TickTracker {
     /// offsets). After a reversal until a second tick in the new direction there is no speed to
     /// go on: the wheel is taken to be at its last edge.
     fn edge_position_q16(&self, t_ns: u64) -> i64 {
-        let at_edge = (self.edge << 16) + self.learner.table().offset_q16(self.edge);
+        let at_edge = (self.edge << 16) + self.learner.offset_q16(self.edge);
         let Some(interval) = self.interval else {
             return at_edge;
         };
@@ -312,17 +318,18 @@ impl TickTracker {
             return at_edge;
         }
         let dir = self.dir;
+        let table = &self.learner;
         // The last interval's span and the next one's, along the travel (Q16 counts: one count
         // each on ideal edges).
         let back = self.edge - dir as i64;
-        let s2 = self.learner.table().span_q16(back, dir);
-        let next = self.learner.table().span_q16(self.edge, dir);
+        let s2 = table.span_q16(back, dir);
+        let next = table.span_q16(self.edge, dir);
         // x = τ / T2 in Q16, capped at 8 steps' worth of time (well past any clamp below).
         let x = ((since.min(interval * 8) << 16) / nz) as i64;
         let frac = match self.prev_interval {
             None => (s2 * x) >> 16, // one interval only: constant speed
             Some(t1) => {
-                let s1 = self.learner.table().span_q16(back - dir as i64, dir);
+                let s1 = table.span_q16(back - dir as i64, dir);
                 // ρ = T2 / T1 in Q16, limited to [1/16, 16] so one odd interval cannot
                 // throw the fit far.
                 // `interval < 2^40` (checked above), so the shift fits 64 bits.
