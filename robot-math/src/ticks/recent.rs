@@ -93,6 +93,48 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// One tracker ticked at every tick, one that keeps its ticks for the update as the slave
+    /// does, and the ring between them.
+    struct Pair {
+        every: TickTracker,
+        deferred: TickTracker,
+        recent: RecentTicks,
+        count: i64,
+    }
+
+    impl Pair {
+        fn new(every: TickTracker, count: i64) -> Self {
+            let recent = RecentTicks::default();
+            Pair {
+                every,
+                deferred: every,
+                recent,
+                count,
+            }
+        }
+
+        fn tick(&mut self, t: u64, step: i8) {
+            self.count += step as i64;
+            self.every.tick(t, step);
+            if self.deferred.placing() {
+                self.deferred.tick(t, step);
+            } else {
+                self.recent.push(t, step);
+            }
+        }
+
+        /// An update: the kept ticks caught up, both trackers learn; they must be equal.
+        fn update(&mut self) -> Result<(), TestCaseError> {
+            if self.recent.any() {
+                self.deferred.catch_up(self.count, &mut self.recent);
+            }
+            self.deferred.learn();
+            self.every.learn();
+            prop_assert_eq!(self.deferred, self.every);
+            Ok(())
+        }
+    }
+
     proptest! {
         /// A tracker caught up at random instants equals one that saw every tick: random
         /// steps (reversals, runs), random intervals (including equal times), any start.
@@ -105,37 +147,23 @@ mod tests {
                 0..400,
             ),
         ) {
-            let mut every = TickTracker::starting(start, 50);
+            #[allow(unused_mut)]
+            let mut first = TickTracker::starting(start, 50);
             #[cfg(feature = "edge-learning")]
-            every.set_edge_learning(learn);
+            first.set_edge_learning(learn);
             #[cfg(not(feature = "edge-learning"))]
             let _ = learn;
-            let mut deferred = every;
-            let mut recent = RecentTicks::default();
-            let (mut t, mut count) = (100u64, start);
+            let mut p = Pair::new(first, start);
+            let mut t = 100u64;
             for (dt, step, update_here) in ticks {
                 t += dt;
-                count += step as i64;
-                every.tick(t, step);
-                if deferred.placing() {
-                    deferred.tick(t, step);
-                } else {
-                    recent.push(t, step);
-                }
+                p.tick(t, step);
                 if update_here {
-                    if recent.any() {
-                        deferred.catch_up(count, &mut recent);
-                    }
-                    deferred.learn();
-                    every.learn();
-                    prop_assert_eq!(deferred, every);
-                    prop_assert_eq!(deferred.position_q16(t + 37), every.position_q16(t + 37));
+                    p.update()?;
+                    prop_assert_eq!(p.deferred.position_q16(t + 37), p.every.position_q16(t + 37));
                 }
             }
-            if recent.any() {
-                deferred.catch_up(count, &mut recent);
-            }
-            prop_assert_eq!(deferred, every);
+            p.update()?;
         }
     }
 
@@ -152,33 +180,21 @@ mod tests {
                 200..600,
             ),
         ) {
-            let mut every = TickTracker::starting(0, 0);
-            every.set_edge_learning(true);
-            let mut deferred = every;
-            let mut recent = RecentTicks::default();
-            let (mut t, mut count, mut step) = (1_000u64, 0i64, 1i8);
+            let mut first = TickTracker::starting(0, 0);
+            first.set_edge_learning(true);
+            let mut p = Pair::new(first, 0);
+            let (mut t, mut step) = (1_000u64, 1i8);
             for (jitter, reverse, update_here) in ticks {
                 if reverse {
                     step = -step;
                 }
                 t += base + jitter;
-                count += step as i64;
-                every.tick(t, step);
-                if deferred.placing() {
-                    deferred.tick(t, step);
-                } else {
-                    recent.push(t, step);
-                }
+                p.tick(t, step);
                 if update_here {
-                    if recent.any() {
-                        deferred.catch_up(count, &mut recent);
-                    }
-                    deferred.learn();
-                    every.learn();
-                    prop_assert_eq!(deferred, every);
+                    p.update()?;
                 }
             }
-            prop_assert!(every.edges().windows() > 0, "nothing learned");
+            prop_assert!(p.every.edges().windows() > 0, "nothing learned");
         }
     }
 }
