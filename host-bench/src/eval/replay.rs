@@ -281,7 +281,8 @@ fn replay_tracked(
 }
 
 /// `algorithm` for `robot`, started at the stream's first truth row, its encoder count, and
-/// whether it learns the edges ([`LEARNED_EDGES`]).
+/// whether the walk's own trackers must learn the edges (`exact-f64+edges` reads them;
+/// `exact+edges` learns in its own, [`LEARNED_EDGES`]).
 fn estimator(
     robot: &Robot,
     stream: &TickStream,
@@ -362,11 +363,12 @@ fn estimator(
             Box::new(odo)
         }
     };
-    Ok((estimator, n, learn))
+    // Only the twin reads the walk's trackers' positions.
+    Ok((estimator, n, learn && algorithm == ORACLE))
 }
 
 /// The walk's own wheel trackers (what `exact`'s f64 twin reads): how many, and whether they
-/// learn their edges as `exact` does.
+/// learn their edges as `exact` does (for the twin of `exact+edges`).
 #[derive(Clone, Copy)]
 struct Wheels {
     n: usize,

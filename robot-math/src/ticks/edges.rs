@@ -171,8 +171,6 @@ pub struct Learner {
     /// The last tick completed a window that has not been learned from yet.
     fresh: bool,
     table: EdgeTable,
-    /// The start was fitted again on learned edges.
-    replaced: bool,
 }
 
 /// Ticks one way that span two whole quadrature cycles: what [`EdgeTable::learn`] measures.
@@ -187,7 +185,6 @@ impl Learner {
             run: 0,
             fresh: false,
             table: EdgeTable::new(),
-            replaced: false,
         }
     }
 
@@ -249,15 +246,6 @@ impl Learner {
     pub fn span_q16(&self, from: i64, dir: i8) -> i64 {
         self.table.span_q16(from, dir)
     }
-
-    /// The wheel's start was fitted again on the learned edges (once).
-    pub fn replaced(&self) -> bool {
-        self.replaced
-    }
-
-    pub fn set_replaced(&mut self) {
-        self.replaced = true;
-    }
 }
 
 /// The stand-in without the `edge-learning` feature: nothing kept, every edge a whole count.
@@ -275,11 +263,6 @@ impl Learner {
     pub fn advance(&mut self, _same_way: bool, _prev_t: u64) {}
 
     #[inline(always)]
-    pub fn learn(&mut self, _last_t: u64, _last_edge: i64, _dir: i8) -> bool {
-        false
-    }
-
-    #[inline(always)]
     pub fn table(&self) -> &EdgeTable {
         &EVEN
     }
@@ -295,14 +278,6 @@ impl Learner {
     pub fn span_q16(&self, _from: i64, _dir: i8) -> i64 {
         1 << 16
     }
-
-    #[inline(always)]
-    pub fn replaced(&self) -> bool {
-        true
-    }
-
-    #[inline(always)]
-    pub fn set_replaced(&mut self) {}
 }
 
 #[cfg(not(feature = "edge-learning"))]

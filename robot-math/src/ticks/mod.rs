@@ -192,9 +192,9 @@ impl TickTracker {
     /// crossed. Integer-only.
     pub fn learn(&mut self) {
         #[cfg(feature = "edge-learning")]
+        // Once: the count of windows reaches it once (it starts again only with the table).
         if self.learner.learn(self.last_t, self.edge, self.dir)
-            && self.learner.table().windows() >= REPLACE_AFTER
-            && !self.learner.replaced()
+            && self.learner.table().windows() == REPLACE_AFTER
         {
             self.replace_start();
         }
@@ -220,7 +220,6 @@ impl TickTracker {
     #[cold]
     #[inline(never)]
     fn replace_start(&mut self) {
-        self.learner.set_replaced();
         let Some(first) = self.first.get(..self.gathered as usize) else {
             return;
         };
