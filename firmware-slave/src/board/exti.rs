@@ -17,9 +17,9 @@ use embassy_stm32::interrupt::{self as irq, InterruptExt, Priority};
 // cortex-m-rt's `#[interrupt]` attribute and the vector names it checks against.
 use embassy_stm32::pac::{self, interrupt};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use firmware_slave::ports::{widen_us, EdgeBatch, EncoderEdge, EncoderEdges, MEASURING_WHEELS};
+use heapless::spsc::{Consumer, Producer, Queue};
 
 const LEFT: u32 = 0b11; // lines 0, 1
 const RIGHT: u32 = 0b11 << 8; // lines 8, 9
@@ -36,8 +36,33 @@ struct QueuedEdge {
 }
 
 /// Edges between two odometry updates: at 1 kHz and 0.6 m/s a 32.7 µm-count wheel makes about
-/// 20 edges per update, so 256 leaves room for fast motion and a late update.
-static EDGES: Channel<CriticalSectionRawMutex, QueuedEdge, 256> = Channel::new();
+/// 20 edges per update, so 255 leave room for fast motion and a late update. A lock-free
+/// single-producer, single-consumer queue (heapless'): the producer is the encoder lines'
+/// handlers, which share one priority (none preempts another: one producer at a time), the
+/// consumer the odometry task's drain. embassy-sync's `Channel` took a critical section on each
+/// end and 330 B more of the slave's flash.
+static mut EDGES: (Producer<'static, QueuedEdge>, Consumer<'static, QueuedEdge>) = {
+    static mut QUEUE: Queue<QueuedEdge, 256> = Queue::new();
+    // SAFETY: `QUEUE` is reachable only here, and split once, at compile time.
+    let queue = &raw mut QUEUE;
+    unsafe { (*queue).split_const() }
+};
+
+/// The producer's end. SAFETY (the caller's): only from the encoder lines' handlers, which run
+/// at one priority and so never at the same time.
+unsafe fn edge_producer() -> &'static mut Producer<'static, QueuedEdge> {
+    // SAFETY: as the caller promises, no other reference to it lives.
+    let ends = &raw mut EDGES;
+    unsafe { &mut (*ends).0 }
+}
+
+/// The consumer's end. SAFETY (the caller's): only from [`drain_edges`], which the one odometry
+/// task calls.
+unsafe fn edge_consumer() -> &'static mut Consumer<'static, QueuedEdge> {
+    // SAFETY: as the caller promises, no other reference to it lives.
+    let ends = &raw mut EDGES;
+    unsafe { &mut (*ends).1 }
+}
 static EDGES_LOST: AtomicBool = AtomicBool::new(false);
 static NSS_ROSE: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
@@ -82,10 +107,12 @@ fn on_encoder_edge(lines: u32) {
     // Clear first: an edge arriving while this runs pends again instead of being lost.
     pac::EXTI.pr(0).write(|w| w.0 = lines);
     let levels = encoder_levels();
+    // SAFETY: this runs in the encoder lines' handlers alone (priority P0, `init`).
+    let edges = unsafe { edge_producer() };
     for (encoder, mask) in [(0u8, LEFT), (1u8, RIGHT)] {
         if lines & mask != 0
-            && EDGES
-                .try_send(QueuedEdge {
+            && edges
+                .enqueue(QueuedEdge {
                     t_us,
                     encoder,
                     levels: levels[encoder as usize],
@@ -153,6 +180,8 @@ fn drain_edges(f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
     // the timers agree; otherwise let the interrupt run and try again. At tens of kHz of
     // edges and a sub-microsecond critical section, a retry is rare and three in a row
     // are rarer still (the cross-check is then skipped once).
+    // SAFETY: the drain is the queue's one consumer (the odometry task's).
+    let edges = unsafe { edge_consumer() };
     let cut = (0..3).find_map(|_| {
         critical_section::with(|_| {
             (pending(ENCODER_LINES) == 0).then(|| {
@@ -161,23 +190,23 @@ fn drain_edges(f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
                     pac::TIM2.cnt().read().cnt(),
                     pac::TIM1.cnt().read().cnt(),
                 ];
-                (EDGES.len(), counters)
+                (edges.len(), counters)
             })
         })
     });
     // Only the edges up to the cut (or, without one, those queued now): later ones stay
     // queued for the next drain. The clock is read after they were counted, so every one
     // of them is older than `now_us`, as `widen_us` needs.
-    let take = cut.map_or_else(|| EDGES.len(), |(queued, _)| queued);
+    let take = cut.map_or_else(|| edges.len(), |(queued, _)| queued);
     let now_us = embassy_time::Instant::now().as_micros();
     for _ in 0..take {
-        match EDGES.try_receive() {
-            Ok(e) => f(EncoderEdge {
+        match edges.dequeue() {
+            Some(e) => f(EncoderEdge {
                 t_us: widen_us(e.t_us, now_us),
                 encoder: e.encoder,
                 levels: e.levels,
             }),
-            Err(_) => break,
+            None => break,
         }
     }
     EdgeBatch {

@@ -231,7 +231,9 @@ impl Layout {
             let (w, m) = (wheels[j], metres_per_count[j]);
             let finite = [w.x, w.y, w.ux, w.uy].iter().all(|v| v.is_finite());
             if j >= n {
-                if w != NO_WHEEL || m != 0.0 {
+                // An unused slot is all zero bits, as `NO_WHEEL` (compared as bits: an f64
+                // equality was the slave's last soft-float routine, 80 B of its flash).
+                if [w.x, w.y, w.ux, w.uy, m].iter().any(|v| v.to_bits() != 0) {
                     return Err(LayoutError::EncoderCount(j + 1));
                 }
             } else if !finite {

@@ -41,18 +41,29 @@ const MIN_GAP: i64 = ONE / 256;
 /// 1/8 count.
 const MARGIN: i64 = ONE / 8;
 
-/// `a·b` in Q24, or `None` past 64 bits. Out of line (as [`div`]): a checked 64-bit multiply
-/// is dozens of instructions on the M3, and each inlined copy cost flash in a fit that runs
-/// for a wheel's first ticks only.
+/// `a·b` in Q24; past 64 bits, 0 with `ok` cleared. Out of line (as [`div`]): a checked 64-bit
+/// multiply is dozens of instructions on the M3, and each inlined copy cost flash in a fit that
+/// runs for a wheel's first ticks only. The flag, not an `Option`: a fit that overflows
+/// anywhere is refused all the same, checked once before its result is used, and the
+/// `Option`s' tags through memory were 130 B of the slave's flash.
 #[inline(never)]
-fn mul(a: i64, b: i64) -> Option<i64> {
-    a.checked_mul(b).map(|p| p >> Q)
+fn mul(ok: &mut bool, a: i64, b: i64) -> i64 {
+    checked(ok, a.checked_mul(b).map(|p| p >> Q))
 }
 
-/// `a / b` in Q24, or `None` past 64 bits or for `b` = 0.
+/// `a / b` in Q24; past 64 bits or for `b` = 0, 0 with `ok` cleared.
 #[inline(never)]
-fn div(a: i64, b: i64) -> Option<i64> {
-    a.checked_mul(ONE)?.checked_div(b)
+fn div(ok: &mut bool, a: i64, b: i64) -> i64 {
+    checked(ok, a.checked_mul(ONE).and_then(|n| n.checked_div(b)))
+}
+
+/// The value, or 0 with `ok` cleared.
+#[inline(never)]
+fn checked(ok: &mut bool, v: Option<i64>) -> i64 {
+    v.unwrap_or_else(|| {
+        *ok = false;
+        0
+    })
 }
 
 /// The start position `u_s` (Q16 counts, in `[0, 1)`) of a wheel whose first `times.len()`
@@ -79,16 +90,20 @@ pub fn start_position_on_q16(power_on_ns: u64, times: &[u64], places: &[i64; 4])
     if span == 0 || span >= 1 << 39 || t1 < power_on_ns {
         return None;
     }
-    // Nodes in Q24 units of the span, x1 = 0. (`checked_*` and iterators throughout: no
+    // Nodes in Q24 units of the span, x1 = 0. (`checked_*` and `get` throughout: no
     // panic path may reach the board.)
     let mut x = [0i64; 4];
     let mut prev = 0;
-    for (xk, &t) in x.iter_mut().zip(times).skip(1) {
-        *xk = ((t.checked_sub(t1)? << Q).checked_div(span)?) as i64;
-        if *xk - prev < MIN_GAP {
+    // An index loop: a `skip` iterator adaptor left an out-of-line `next` in the image.
+    let mut k = 1;
+    while k < n {
+        let xk = ((times.get(k)?.checked_sub(t1)? << Q).checked_div(span)?) as i64;
+        if xk - prev < MIN_GAP {
             return None;
         }
-        prev = *xk;
+        *x.get_mut(k)? = xk;
+        prev = xk;
+        k += 1;
     }
     let back = t1 - power_on_ns;
     let x_pow = if back >= MAX_BACK as u64 * span {
@@ -96,36 +111,44 @@ pub fn start_position_on_q16(power_on_ns: u64, times: &[u64], places: &[i64; 4])
     } else {
         -((back << Q).checked_div(span)? as i64)
     };
-    // Newton's divided differences of u_k = places[k] at the nodes (all Q24): a[1..n).
+    // Newton's divided differences of u_k = places[k] at the nodes (all Q24): a[1..n). From
+    // here any product or quotient past 64 bits clears `ok`, and the fit is refused.
+    let ok = &mut true;
     let mut dd = *places;
     let mut a = [0i64; 4];
     for level in 1..n {
         for k in (level..n).rev() {
             let (hi, lo) = (*dd.get(k)?, *dd.get(k - 1)?);
             let dx = x.get(k)? - x.get(k - level)?;
-            *dd.get_mut(k)? = div(hi - lo, dx)?;
+            *dd.get_mut(k)? = div(ok, hi - lo, dx);
         }
         *a.get_mut(level)? = *dd.get(level)?;
     }
     // Monomials about x = 0: u(x) = c0 + c1 x + c2 x² + c3 x³.
     let c3 = a[3];
-    let c2 = a[2] - mul(c3, x[1] + x[2])?;
-    let c1 = a[1] - mul(a[2], x[1])? + mul(mul(c3, x[1])?, x[2])?;
+    let c2 = a[2] - mul(ok, c3, x[1] + x[2]);
+    let c1 = a[1] - mul(ok, a[2], x[1]);
+    let c3_x1 = mul(ok, c3, x[1]);
+    let c1 = c1 + mul(ok, c3_x1, x[2]);
     let poly = Poly {
         c0: places[0],
         c1,
         c2,
         c3,
     };
-    if c1 <= 0 {
-        return None; // not moving at the first tick
+    if !*ok || c1 <= 0 {
+        return None; // overflowed, or not moving at the first tick
     }
-    let start = match poly.latest_zero(x_pow)? {
+    let start = match poly.latest_zero(ok, x_pow) {
         Some(z) => z,
         // A dip to near rest (a double zero that rounding lifted above the axis).
         None if c3 > 0 => {
-            let v = -div(c2, 3 * c3)?;
-            let dip = v > x_pow && v < 0 && poly.speed(v)?.checked_mul(4)? <= poly.speed(x_pow)?;
+            let v = -div(ok, c2, 3 * c3);
+            let dip = v > x_pow && v < 0 && {
+                let at_v = poly.speed(ok, v).checked_mul(4);
+                let four_times = checked(ok, at_v);
+                four_times <= poly.speed(ok, x_pow)
+            };
             if dip {
                 v
             } else {
@@ -134,8 +157,8 @@ pub fn start_position_on_q16(power_on_ns: u64, times: &[u64], places: &[i64; 4])
         }
         None => x_pow,
     };
-    let us = poly.at(start)?;
-    if !(-MARGIN..=ONE + MARGIN).contains(&us) {
+    let us = poly.at(ok, start);
+    if !*ok || !(-MARGIN..=ONE + MARGIN).contains(&us) {
         return None;
     }
     // To Q16, rounded.
@@ -150,42 +173,49 @@ struct Poly {
     c3: i64,
 }
 
+// Past 64 bits each clears `ok` (and its value is then meaningless).
 impl Poly {
-    fn at(&self, x: i64) -> Option<i64> {
-        let x2 = mul(x, x)?;
-        Some(self.c0 + mul(self.c1, x)? + mul(self.c2, x2)? + mul(self.c3, mul(x2, x)?)?)
+    fn at(&self, ok: &mut bool, x: i64) -> i64 {
+        let x2 = mul(ok, x, x);
+        let x3 = mul(ok, x2, x);
+        self.c0 + mul(ok, self.c1, x) + mul(ok, self.c2, x2) + mul(ok, self.c3, x3)
     }
 
     /// `u'(x) = c1 + 2 c2 x + 3 c3 x²`.
-    fn speed(&self, x: i64) -> Option<i64> {
-        Some(self.c1 + 2 * mul(self.c2, x)? + 3 * mul(self.c3, mul(x, x)?)?)
+    fn speed(&self, ok: &mut bool, x: i64) -> i64 {
+        let x2 = mul(ok, x, x);
+        self.c1 + 2 * mul(ok, self.c2, x) + 3 * mul(ok, self.c3, x2)
     }
 
-    /// The latest zero of the speed in `(x_pow, 0)` (`Some(None)`: none; `None`: overflow).
-    fn latest_zero(&self, x_pow: i64) -> Option<Option<i64>> {
+    /// The latest zero of the speed in `(x_pow, 0)`, if any.
+    fn latest_zero(&self, ok: &mut bool, x_pow: i64) -> Option<i64> {
         let inside = |r: i64| (r > x_pow && r < 0).then_some(r);
         let (c1, c2, c3) = (self.c1, self.c2, self.c3);
         if c3 == 0 {
-            return Some(if c2 == 0 {
+            return if c2 == 0 {
                 None
             } else {
-                inside(-div(c1, 2 * c2)?)
-            });
+                inside(-div(ok, c1, 2 * c2))
+            };
         }
         // Roots (−c2 ± √(c2² − 3 c1 c3)) / (3 c3); the discriminant in Q48.
-        let disc = c2
-            .checked_mul(c2)?
-            .checked_sub(c1.checked_mul(c3)?.checked_mul(3)?)?;
+        let disc = checked(
+            ok,
+            c2.checked_mul(c2).and_then(|square| {
+                let product = c1.checked_mul(c3)?.checked_mul(3)?;
+                square.checked_sub(product)
+            }),
+        );
         if disc < 0 {
-            return Some(None);
+            return None;
         }
         let root = isqrt(disc as u64) as i64;
-        let r1 = inside(div(root - c2, 3 * c3)?);
-        let r2 = inside(div(-root - c2, 3 * c3)?);
-        Some(match (r1, r2) {
+        let r1 = inside(div(ok, root - c2, 3 * c3));
+        let r2 = inside(div(ok, -root - c2, 3 * c3));
+        match (r1, r2) {
             (Some(p), Some(q)) => Some(p.max(q)),
             (p, q) => p.or(q),
-        })
+        }
     }
 }
 
