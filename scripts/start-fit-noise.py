@@ -6,7 +6,7 @@ the edges", what it does not do yet).
 A wheel powered on at rest, a random fraction φ into its count, starts at power-on as
 s(t) = J·t³ (a jerk-limited start, counts) or s(t) = A·t² (constant acceleration). Its edges
 are at k + (each kind's offset) + (its line's placement, uniform within ±`--line` counts, one
-line per four counts). The fit knows each kind's offset (as after `exact+edges` has learned
+line per four counts). The fit knows each kind's offset (as after `exact` has learned
 them) but not the lines'. It fits a polynomial of degree 3 to the first N ticks (N = 4: through
 them, as `robot-math/src/ticks/start.rs` does; more: least squares), takes the latest zero of
 its speed before the first tick (or power-on), and reads the start there. Printed: the error

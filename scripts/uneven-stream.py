@@ -23,12 +23,13 @@ Usage: python3 scripts/uneven-stream.py --out DIR [--case NAME|all] [--edges typ
 Writes DIR/<case>.toml (the robot) and DIR/<case>-<edges>-<seed>.csv (the stream).
 
        python3 scripts/uneven-stream.py --out DIR --report [--seeds 8] [--host-bench PATH]
-                                        [--learn-edges]
+                                        [--even-edges]
 Writes every case at every edge placement for seeds 0..N-1, replays each with
 `host-bench replay --json` (default target/debug/host-bench) and prints, per case and edge
 placement, each method's maximum error (median and max over the seeds), the best baseline's,
-and exact's ratio to it. With --learn-edges, exact's column is `exact+edges` (exact learning
-each encoder's edges while it moves).
+and exact's ratio to it. `exact` learns each encoder's edges while it moves, as the boards do;
+with --even-edges its column is `exact+even` (every edge a count after the last, as before it
+learned them), for a comparison.
 """
 
 import argparse
@@ -156,11 +157,11 @@ def write(case, edges, seed, out):
     return path
 
 
-def report(out, seeds, host_bench, learn_edges=False):
+def report(out, seeds, host_bench, even_edges=False):
     methods = ("arc", "lut", "timing", "exact")
     print(
         f"max error over each path, mm: median / max over {seeds} seeds (power-on phase and state)"
-        + ("; exact learning the edges (exact+edges)" if learn_edges else "")
+        + ("; exact taking the edges a count apart (exact+even)" if even_edges else "")
     )
     print(
         f"{'case':16} {'edges':8} "
@@ -180,10 +181,10 @@ def report(out, seeds, host_bench, learn_edges=False):
                     check=True,
                 )
                 got = {a["name"]: a["max_error_m"] for a in json.loads(r.stdout)["algorithms"]}
-                if learn_edges:
+                if even_edges:
                     r = subprocess.run(
                         [host_bench, "replay", "--ticks", path, "--json"]
-                        + ["--algorithm", "exact+edges"],
+                        + ["--algorithm", "exact+even"],
                         capture_output=True,
                         text=True,
                         check=True,
@@ -210,7 +211,7 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--report", action="store_true")
     ap.add_argument("--seeds", type=int, default=8)
-    ap.add_argument("--learn-edges", action="store_true")
+    ap.add_argument("--even-edges", action="store_true")
     ap.add_argument(
         "--host-bench",
         default=os.path.join(
@@ -223,7 +224,7 @@ def main():
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     if a.report:
-        report(a.out, a.seeds, a.host_bench, a.learn_edges)
+        report(a.out, a.seeds, a.host_bench, a.even_edges)
         return
     for case in CASES if a.case == "all" else [a.case]:
         print(write(case, a.edges, a.seed, a.out))

@@ -165,11 +165,11 @@ enum Command {
             default_value = "ideal"
         )]
         edges: String,
-        /// `exact` learns each encoder's four quadrature edges while it moves, with time
-        /// stamps (the host's alone: the slave's image has no room for it yet). On
-        /// `replay`: `--algorithm exact+edges`.
+        /// `exact` takes every edge a whole count after the last, as before it learned where
+        /// each encoder puts the four edges of its quadrature cycle (with time stamps; the
+        /// boards always learn them): for a comparison. On `replay`: `--algorithm exact+even`.
         #[arg(long)]
-        learn_edges: bool,
+        even_edges: bool,
     },
     /// Yan (2013)'s speed envelope of the three-omni drive: top translation speed in every
     /// direction and with spin, from the model and driven flat out on the simulated robot,
@@ -211,9 +211,9 @@ enum Command {
         #[arg(long, value_name = "FILE")]
         ticks: PathBuf,
         /// Estimator to run (arc, lut, timing, exact; exact-f64, exact's float twin), or
-        /// `all`. `exact+edges` (or `exact-f64+edges`): `exact` learning each encoder's four
-        /// quadrature edges while it moves, with time stamps (the host's alone: the slave's
-        /// image has no room for it yet).
+        /// `all`. `exact+even` (or `exact-f64+even`): `exact` taking every edge a whole count
+        /// after the last instead of learning where each encoder puts the four edges of its
+        /// quadrature cycle (time stamps only), as the boards never do: for a comparison.
         #[arg(long, default_value = "all")]
         algorithm: String,
         /// Write each algorithm's track (truth, estimate, error at every truth row) as
@@ -505,8 +505,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             seeds,
             edges,
-            learn_edges,
-        } => cli::analyse::run_accuracy(json, out, seeds, &edges, learn_edges),
+            even_edges,
+        } => cli::analyse::run_accuracy(json, out, seeds, &edges, even_edges),
         Command::Envelope { json, out } => cli::envelope::run_envelope(json, out),
         Command::PursuitSweep {
             json,

@@ -151,8 +151,8 @@ fn an_unknown_preset_is_refused_with_the_choices() {
 #[test]
 fn exact_learning_its_edges_holds_on_uneven_ones() {
     // An arc at constant twist from power-on on the datasheet's maximum cycle errors: `exact`
-    // taking the edges a count apart against `exact+edges` learning them (and placing each
-    // wheel's start again on them), over seeds; and the learner's integer arithmetic against
+    // taking the edges a count apart (`exact+even`) against `exact` learning them (and placing
+    // each wheel's start again on them), over seeds; and the learner's integer arithmetic against
     // its f64 twin fed the same learned positions.
     use host_bench::eval::replay::{replay, Mode};
     let r = robot("seed001.toml");
@@ -164,8 +164,8 @@ fn exact_learning_its_edges_holds_on_uneven_ones() {
     for seed in 0..6 {
         let stream = generate(&r, None, &arc, &with_edges("max-cycle", seed)).unwrap();
         let score = |name: &str| replay(&r, &stream, name, Mode::Timestamps).unwrap();
-        let (p, l) = (score("exact"), score("exact+edges"));
-        let twin = score("exact-f64+edges");
+        let (p, l) = (score("exact+even"), score("exact"));
+        let twin = score("exact-f64");
         assert!(
             (l.max_error_m - twin.max_error_m).abs() < 1e-6,
             "seed {seed}: {} vs its twin {}",

@@ -13,7 +13,7 @@ pub fn run_accuracy(
     out: Option<PathBuf>,
     seeds: u64,
     edges: &str,
-    learn_edges: bool,
+    even_edges: bool,
 ) -> anyhow::Result<()> {
     use host_bench::eval::accuracy;
     let edges = host_bench::sim::generate::EdgeErrors::preset(edges).context("--edges")?;
@@ -33,7 +33,7 @@ pub fn run_accuracy(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let results = accuracy::run(seeds, edges, learn_edges, |label| {
+    let results = accuracy::run(seeds, edges, even_edges, |label| {
         bar.set_message(label.to_string());
         bar.inc(1);
     })?;

@@ -38,9 +38,10 @@ const _: () = assert!(ALGORITHMS.len() == Method::ALL.len());
 /// Also accepted by [`replay`]: `exact`'s f64 twin, fed the same (interpolated) counts, for
 /// checking the fixed-point version against it.
 pub const ORACLE: &str = "exact-f64";
-/// Added to `exact` (or its twin): it learns each encoder's four quadrature edges while it
-/// moves (`Odometry::set_edge_learning`; the slave's image cannot yet).
-pub const LEARNED_EDGES: &str = "+edges";
+/// Added to `exact` (or its twin): it takes every edge a whole count after the last instead of
+/// learning where each encoder puts the four edges of its quadrature cycle
+/// (`Odometry::set_edge_learning`): `exact` as it was before it learned them, for a comparison.
+pub const EVEN_EDGES: &str = "+even";
 
 /// How the estimator sees the encoders.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -281,21 +282,24 @@ fn replay_tracked(
 }
 
 /// `algorithm` for `robot`, started at the stream's first truth row, its encoder count, and
-/// whether the walk's own trackers must learn the edges (`exact-f64+edges` reads them;
-/// `exact+edges` learns in its own, [`LEARNED_EDGES`]).
+/// whether the walk's own trackers must learn the edges (`exact-f64` reads them; `exact`
+/// learns in its own; neither with [`EVEN_EDGES`]).
 fn estimator(
     robot: &Robot,
     stream: &TickStream,
     algorithm: &str,
     mode: Mode,
 ) -> Result<(Box<dyn Estimator>, usize, bool)> {
-    let (algorithm, learn) = match algorithm.strip_suffix(LEARNED_EDGES) {
-        Some(base @ ("exact" | ORACLE)) => (base, true),
+    let (algorithm, learn) = match algorithm.strip_suffix(EVEN_EDGES) {
+        Some(base @ ("exact" | ORACLE)) => (base, false),
         Some(_) => bail!("only `exact` and `{ORACLE}` learn edges (`{algorithm}`)"),
-        None => (algorithm, false),
+        None => (algorithm, true),
     };
-    if learn && mode != Mode::Timestamps {
-        bail!("`{algorithm}{LEARNED_EDGES}` learns from time-stamped ticks, not sampled counts");
+    if !learn && mode != Mode::Timestamps {
+        bail!(
+            "`{algorithm}{EVEN_EDGES}` is about time-stamped ticks: with sampled counts `exact` \
+             sees no edges to learn"
+        );
     }
     if let Mode::Counts { rate_hz } = mode {
         check_counts_rate(rate_hz)?;
@@ -368,7 +372,7 @@ fn estimator(
 }
 
 /// The walk's own wheel trackers (what `exact`'s f64 twin reads): how many, and whether they
-/// learn their edges as `exact` does (for the twin of `exact+edges`).
+/// learn their edges as `exact` does (the twin's; not for `exact-f64+even`).
 #[derive(Clone, Copy)]
 struct Wheels {
     n: usize,

@@ -182,7 +182,6 @@ impl Odometry {
         self.keep_edges = false;
         // Kept by the trackers themselves (a field here moved the slave's update by four
         // instructions): the new ones learn as the old did.
-        #[cfg(feature = "edge-learning")]
         let learn_edges = self.trackers[0].edge_learning();
         for (j, &count) in counts.iter().enumerate() {
             let c = if j < n { count } else { 0 };
@@ -191,9 +190,7 @@ impl Odometry {
             // are: they start at the counts `exact` starts from, or an update before the
             // first `set_counts` would integrate a move from there back to zero.
             self.positions[j] = c.wrapping_shl(16);
-            self.trackers[j] = TickTracker::starting(c, t_ns);
-            #[cfg(feature = "edge-learning")]
-            self.trackers[j].set_edge_learning(learn_edges);
+            self.trackers[j] = TickTracker::starting_learning(c, t_ns, learn_edges);
             self.recent[j] = RecentTicks::default();
         }
         self.abs = match (self.layout.abs(), abs_code) {
@@ -290,9 +287,8 @@ impl Odometry {
 
     /// With time-stamped ticks, `exact` learns where each encoder really puts the four edges
     /// of its quadrature cycle while it moves, interpolates on them and, once it knows them,
-    /// places each wheel's start again on them ([`crate::ticks::edges`]). Off by default: the
-    /// slave image has no room for it yet, and board and host must run the same arithmetic.
-    #[cfg(feature = "edge-learning")]
+    /// places each wheel's start again on them ([`crate::ticks::edges`]). On by default, on the
+    /// slave as on the host; off (for a comparison), every edge is a whole count.
     pub fn set_edge_learning(&mut self, on: bool) {
         for t in &mut self.trackers {
             t.set_edge_learning(on);

@@ -490,8 +490,10 @@ fn the_estimator_fits_the_slaves_ram() {
     eprintln!("size_of Odometry = {size} B, Layout = {layout} B");
     assert!(layout <= 512, "{layout}");
     if cfg!(not(feature = "lut-n")) {
-        // Host sizes (8-byte usize); the board's are a little smaller.
-        assert!(size <= 2048, "{size}");
+        // Host sizes (8-byte usize); the board's are a little smaller. 2 KiB until the slave
+        // learned its encoders' edges (each tracker's window and table, and the edge rings'
+        // sixteen slots: 2 584 B on 2026-11-29); the image's statics are gated by `.ci/run`.
+        assert!(size <= 3072, "{size}");
     }
 }
 

@@ -27,7 +27,6 @@ pub mod edges;
 mod recent;
 pub mod start;
 
-#[cfg(feature = "edge-learning")]
 use edges::WINDOW;
 pub use edges::{EdgeTable, Learner};
 pub use recent::RecentTicks;
@@ -63,17 +62,14 @@ pub struct TickTracker {
     /// A fit of the wheel's own first ticks placed it.
     placed: bool,
     /// How many of `first` were gathered (one way).
-    #[cfg(feature = "edge-learning")]
     gathered: u8,
     /// The count at power-on (the first ticks' edges follow from it).
-    #[cfg(feature = "edge-learning")]
     start_count: i64,
     /// The encoder's edges, as learned so far ([`edges`]).
     learner: Learner,
 }
 
 /// Windows learned before a wheel's start is fitted again on its learned edges.
-#[cfg(feature = "edge-learning")]
 const REPLACE_AFTER: u8 = edges::SETTLED / 2;
 
 /// A wheel's first ticks in one direction that place it inside its count (fits of degree 1 to
@@ -101,6 +97,12 @@ impl TickTracker {
     /// A wheel that has not ticked yet, standing somewhere inside `count` at `t_ns` (its
     /// power-on, or when the estimator started watching it).
     pub const fn starting(count: i64, t_ns: u64) -> Self {
+        Self::starting_learning(count, t_ns, true)
+    }
+
+    /// [`starting`](Self::starting), learning its encoder's edges or not
+    /// ([`set_edge_learning`](Self::set_edge_learning)).
+    pub const fn starting_learning(count: i64, t_ns: u64, learn_edges: bool) -> Self {
         TickTracker {
             count,
             edge: count,
@@ -114,19 +116,16 @@ impl TickTracker {
             first_dir: 0,
             phase_q16: UNKNOWN_PHASE_Q16,
             placed: false,
-            #[cfg(feature = "edge-learning")]
             gathered: 0,
-            #[cfg(feature = "edge-learning")]
             start_count: count,
-            learner: Learner::new(),
+            learner: Learner::new(learn_edges),
         }
     }
 
     /// A tick at `t_ns`, `step` = +1 or -1 (anything else is ignored: a corrupt event must
     /// not move the count by more than one).
     // Out of line so `scripts/check-no-float.py` can see it in the object code (small functions
-    // are otherwise only generated where they are used). The slave's edge path
-    // ([`tick_wheel`]) has the body inlined instead: a call is a tenth of an edge's cost.
+    // are otherwise only generated where they are used).
     #[inline(never)]
     pub fn tick(&mut self, t_ns: u64, step: i8) {
         if step == 1 || step == -1 {
@@ -134,21 +133,24 @@ impl TickTracker {
         }
     }
 
-    /// [`tick`](Self::tick) for a `step` known to be ±1.
-    #[inline(always)]
+    /// [`tick`](Self::tick) for a `step` known to be ±1. One copy, called: the slave's edge
+    /// only keeps its tick ([`RecentTicks`]), and this runs for a wheel's first ticks and at
+    /// the update, where a call is little (two inlined copies were 230 B of the slave's flash).
+    #[inline(never)]
     fn advance(&mut self, t_ns: u64, step: i8) {
         // Forward to count m crosses edge m; backward to count m - 1 crosses edge m too.
         self.edge = if step > 0 { self.count + 1 } else { self.count };
         self.count += step as i64;
         let same_way = self.dir == step;
+        let since = t_ns.saturating_sub(self.last_t);
         self.prev_interval = if same_way { self.interval } else { None };
         // `same_way` implies a tick before (`dir` is 0 until the first).
         self.interval = if same_way {
-            NonZeroU64::new(t_ns.saturating_sub(self.last_t))
+            NonZeroU64::new(since)
         } else {
             None
         };
-        self.learner.advance(same_way, self.last_t);
+        self.learner.advance(same_way, since, self.edge);
         self.last_t = t_ns;
         self.dir = step;
         // Only a wheel's first ticks: every later one skips the fit's call altogether.
@@ -170,20 +172,11 @@ impl TickTracker {
         *slot = t_ns;
         self.first_dir = step;
         self.first_len += 1;
-        #[cfg(feature = "edge-learning")]
-        {
-            self.gathered = self.first_len;
-        }
-        let fitted = self
-            .first
-            .get(..=n)
-            .and_then(|first| start::start_position_q16(self.start_ns, first));
-        if let Some(u) = fitted {
-            // `u` counts the first direction's ticks from the start; backwards the first edge
-            // is the count's lower one.
-            self.phase_q16 = if step > 0 { u } else { (1 << 16) - u };
-            self.placed = true;
-        }
+        self.gathered = self.first_len;
+        // Nothing is learned yet (a window is nine ticks one way; a wheel gathers at most four
+        // before this ends), so its edges are whole counts: the fit on the learned places is
+        // the fit on even ones, and one copy of it serves both (the slave's flash).
+        self.place_on_learned_edges();
     }
 
     /// Learn the encoder's edges from the last two cycles, if the last tick completed them
@@ -191,35 +184,32 @@ impl TickTracker {
     /// enough, a wheel its own first ticks placed is placed again, on the edges they really
     /// crossed. Integer-only.
     pub fn learn(&mut self) {
-        #[cfg(feature = "edge-learning")]
         // Once: the count of windows reaches it once (it starts again only with the table).
-        if self.learner.learn(self.last_t, self.edge, self.dir)
+        if self.learner.learn(self.edge, self.dir)
             && self.learner.table().windows() == REPLACE_AFTER
         {
-            self.replace_start();
+            self.place_on_learned_edges();
         }
     }
 
-    /// Learn this wheel's edges from now on ([`learn`](Self::learn)), or not (the default;
-    /// turned off, what was learned is forgotten: the edges are whole counts again).
-    #[cfg(feature = "edge-learning")]
+    /// Learn this wheel's edges from now on ([`learn`](Self::learn); the default), or not
+    /// (turned off, what was learned is forgotten: the edges are whole counts again).
     pub fn set_edge_learning(&mut self, on: bool) {
         self.learner.set_on(on);
     }
 
     /// This wheel learns its edges.
-    #[cfg(feature = "edge-learning")]
     pub fn edge_learning(&self) -> bool {
         self.learner.on()
     }
 
-    /// The start fit again, its first ticks at their learned edges: a wheel its own first
-    /// ticks placed is placed better, and one they could not (an uneven edge made them look
-    /// like an abrupt start) may be placed now.
-    #[cfg(feature = "edge-learning")]
+    /// The start fit on the first ticks gathered, at their learned edges (whole counts until
+    /// some are learned). Fitted again once the edges are known ([`learn`](Self::learn)), a
+    /// wheel its own first ticks placed is placed better, and one they could not (an uneven
+    /// edge made them look like an abrupt start) may be placed now.
     #[cold]
     #[inline(never)]
-    fn replace_start(&mut self) {
+    fn place_on_learned_edges(&mut self) {
         let Some(first) = self.first.get(..self.gathered as usize) else {
             return;
         };
@@ -237,6 +227,8 @@ impl TickTracker {
             ((k as i64 + 1) << 24) + ((d * self.learner.offset_q16(edge)) << 8)
         });
         if let Some(u) = start::start_position_on_q16(self.start_ns, first, &places) {
+            // `u` counts the first direction's ticks from the start; backwards the first edge
+            // is the count's lower one.
             self.phase_q16 = if d > 0 { u } else { (1 << 16) - u };
             self.placed = true;
         }
@@ -318,39 +310,52 @@ impl TickTracker {
         }
         let dir = self.dir;
         let table = &self.learner;
+        // In 32 bits with 64-bit products (`smull`; the M3's 64 × 64 multiply is three
+        // instructions, and the spans no longer fold to constants): every value below fits, as
+        // each comment's bound says.
         // The last interval's span and the next one's, along the travel (Q16 counts: one count
-        // each on ideal edges).
+        // each on ideal edges; within 1 ± 0.8 counts, under 2^17).
         let back = self.edge - dir as i64;
-        let s2 = table.span_q16(back, dir);
-        let next = table.span_q16(self.edge, dir);
-        // x = τ / T2 in Q16, capped at 8 steps' worth of time (well past any clamp below).
-        let x = ((since.min(interval * 8) << 16) / nz) as i64;
+        let s2 = table.span_q16(back, dir) as i32;
+        let next = table.span_q16(self.edge, dir) as i32;
+        // x = τ / T2 in Q16, capped at 8 steps' worth of time (well past any clamp below): 2^19.
+        let x = ((since.min(interval * 8) << 16) / nz) as i32;
         let frac = match self.prev_interval {
-            None => (s2 * x) >> 16, // one interval only: constant speed
+            None => mul_q16(s2, x), // one interval only: constant speed
             Some(t1) => {
-                let s1 = table.span_q16(back - dir as i64, dir);
+                let s1 = table.span_q16(back - dir as i64, dir) as i32;
                 // ρ = T2 / T1 in Q16, limited to [1/16, 16] so one odd interval cannot
                 // throw the fit far.
                 // `interval < 2^40` (checked above), so the shift fits 64 bits.
-                let rho = ((interval << 16) / t1).clamp(1 << 12, 1 << 20) as i64;
+                let rho = ((interval << 16) / t1).clamp(1 << 12, 1 << 20) as i32;
                 // The mean speeds s1/T1 and s2/T2 belong to the intervals' midpoints; the
                 // acceleration between them, from the last edge: s(x) = s2·x + c·(x + x²),
-                // c = (s2 − ρ·s1)·ρ / (1 + ρ), Q16 (ideal edges: (1 − ρ)·ρ / (1 + ρ)).
-                let c = (s2 - ((rho * s1) >> 16)) * rho / ((1 << 16) + rho);
+                // c = (s2 − ρ·s1)·ρ / (1 + ρ), Q16 (ideal edges: (1 − ρ)·ρ / (1 + ρ));
+                // s2 − ρ·s1 under 17·2^17, c under 2^21.
+                let c =
+                    ((s2 - mul_q16(rho, s1)) as i64 * rho as i64 / ((1 << 16) + rho) as i64) as i32;
                 // Braking: the fitted speed s2 + c·(1 + 2x) reaches zero at
-                // x* = −(s2 + c) / (2c); hold there.
+                // x* = −(s2 + c) / (2c); hold there (x* may pass 32 bits; the least not).
                 let x = if c < 0 {
-                    x.min((s2 + c) * (1 << 16) / (-2 * c))
+                    (x as i64).min(((s2 + c) as i64) * (1 << 16) / (-2 * c as i64)) as i32
                 } else {
                     x
                 };
-                ((s2 * x) >> 16) + ((c * (x + ((x * x) >> 16))) >> 16)
+                // x + x² under 2^23; c·(x + x²) / 2^16 under 2^28.
+                mul_q16(s2, x) + mul_q16(c, x + mul_q16(x, x))
             }
         };
-        // Never at or past the next edge: no tick has said so.
-        let frac = frac.clamp(0, next - 1);
-        at_edge + dir as i64 * frac
+        // Never at or past the next edge: no tick has said so (`max`, `min`: `clamp` keeps a
+        // panic for bounds it cannot see are in order).
+        let frac = frac.max(0).min(next - 1) as i64;
+        at_edge + if dir > 0 { frac } else { -frac }
     }
+}
+
+/// `a·b / 2^16` of two Q16 values, through a 64-bit product (one `smull`), floored.
+#[inline(always)]
+fn mul_q16(a: i32, b: i32) -> i32 {
+    ((a as i64 * b as i64) >> 16) as i32
 }
 
 #[cfg(test)]
@@ -543,6 +548,69 @@ pub fn counts_as_ticks(applied: &mut [i64], counts: &[i64], mut tick: impl FnMut
         }
         if !moved {
             break;
+        }
+    }
+}
+
+#[cfg(test)]
+mod position_in_32_bits_tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// [`TickTracker::edge_position_q16`] as it was written in 64 bits throughout.
+    fn in_64_bits(w: &TickTracker, t_ns: u64) -> i64 {
+        let at_edge = (w.edge << 16) + w.learner.offset_q16(w.edge);
+        let Some(nz) = w.interval else {
+            return at_edge;
+        };
+        let interval = nz.get();
+        let since = t_ns.saturating_sub(w.last_t);
+        if interval >= 1 << 40 {
+            return at_edge;
+        }
+        let (dir, table) = (w.dir, &w.learner);
+        let back = w.edge - dir as i64;
+        let s2 = table.span_q16(back, dir);
+        let next = table.span_q16(w.edge, dir);
+        let x = ((since.min(interval * 8) << 16) / nz) as i64;
+        let frac = match w.prev_interval {
+            None => (s2 * x) >> 16,
+            Some(t1) => {
+                let s1 = table.span_q16(back - dir as i64, dir);
+                let rho = ((interval << 16) / t1).clamp(1 << 12, 1 << 20) as i64;
+                let c = (s2 - ((rho * s1) >> 16)) * rho / ((1 << 16) + rho);
+                let x = if c < 0 {
+                    x.min((s2 + c) * (1 << 16) / (-2 * c))
+                } else {
+                    x
+                };
+                ((s2 * x) >> 16) + ((c * (x + ((x * x) >> 16))) >> 16)
+            }
+        };
+        at_edge + dir as i64 * frac.clamp(0, next - 1)
+    }
+
+    proptest! {
+        /// The 32-bit form (64-bit products) gives what the 64-bit one gave, on any learned
+        /// offsets, intervals and instant.
+        #[test]
+        fn the_interpolation_in_32_bits_equals_it_in_64(
+            offsets in proptest::array::uniform4(-26_214i32..=26_214),
+            edge in -100_000i64..100_000,
+            forward in proptest::bool::ANY,
+            interval in 1u64..1 << 41,
+            prev in proptest::option::of(1u64..1 << 41),
+            since in 0u64..1 << 43,
+        ) {
+            let mut w = TickTracker::starting(edge, 0);
+            w.learner = Learner::with_offsets_q16(offsets);
+            w.edge = edge;
+            w.dir = if forward { 1 } else { -1 };
+            w.last_t = 1 << 20;
+            w.interval = NonZeroU64::new(interval);
+            w.prev_interval = prev.and_then(NonZeroU64::new);
+            let t = w.last_t + since;
+            prop_assert_eq!(w.edge_position_q16(t), in_64_bits(&w, t));
         }
     }
 }

@@ -5,10 +5,10 @@
 //! per tick (its edge, its two intervals) is about 70. That work need not be done per tick:
 //! after any run of ticks a tracker's state depends on its count and on its **last three
 //! ticks only** — its edge on the count and the last step, its interval on the last two
-//! ticks' times and directions, its interval before that on the last three's (with edge
-//! learning, `edge-learning`, on its last nine: the window of two cycles it learns from). So
-//! the edge only keeps its time and step in a ring, and [`TickTracker::catch_up`] replays the
-//! last three (nine) at most when the wheel's position is next needed: bit for bit what
+//! ticks' times and directions, its interval before that on the last three's, and what it
+//! learns of its encoder's edges on its last nine (the window of two cycles it learns from,
+//! [`super::edges`]). So the edge only keeps its time and step in a ring, and
+//! [`TickTracker::catch_up`] replays the last nine at most when the wheel's position is next needed: bit for bit what
 //! ticking every one of them would have left, and a bounded amount of work per wheel per
 //! update however fast the wheel turns.
 //!
@@ -16,21 +16,17 @@
 //! they are gathered every tick feeds the start fit, which needs each one.
 
 use super::TickTracker;
-#[cfg(feature = "edge-learning")]
 use super::WINDOW;
 
-/// The last ticks replayed: what a tracker's state depends on (three; with edge learning its
-/// window of nine).
-#[cfg(feature = "edge-learning")]
+/// The last ticks replayed: what a tracker's state depends on (its edge learner's window of
+/// nine).
 const REPLAYED: u32 = WINDOW as u32;
-#[cfg(not(feature = "edge-learning"))]
-const REPLAYED: u32 = 3;
 /// The ring's slots: a power of two (the slot is a mask, not a division), at least that many.
 const SLOTS: usize = (REPLAYED as usize).next_power_of_two();
 const MASK: u32 = SLOTS as u32 - 1;
 
 /// One wheel's ticks since its tracker last caught up: a ring of [`SLOTS`] of which the last
-/// [`REPLAYED`] are used (four and three; sixteen and nine with edge learning).
+/// [`REPLAYED`] are used (sixteen and nine).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RecentTicks {
     t_ns: [u64; SLOTS],
@@ -147,12 +143,8 @@ mod tests {
                 0..400,
             ),
         ) {
-            #[allow(unused_mut)]
             let mut first = TickTracker::starting(start, 50);
-            #[cfg(feature = "edge-learning")]
             first.set_edge_learning(learn);
-            #[cfg(not(feature = "edge-learning"))]
-            let _ = learn;
             let mut p = Pair::new(first, start);
             let mut t = 100u64;
             for (dt, step, update_here) in ticks {
@@ -167,7 +159,6 @@ mod tests {
         }
     }
 
-    #[cfg(feature = "edge-learning")]
     proptest! {
         /// The same with the edges learned: runs one way at a near-constant speed (so windows
         /// are measured and the start is fitted again), reversals, updates at random; the
@@ -180,8 +171,7 @@ mod tests {
                 200..600,
             ),
         ) {
-            let mut first = TickTracker::starting(0, 0);
-            first.set_edge_learning(true);
+            let first = TickTracker::starting(0, 0);
             let mut p = Pair::new(first, 0);
             let (mut t, mut step) = (1_000u64, 1i8);
             for (jitter, reverse, update_here) in ticks {

@@ -255,7 +255,7 @@ struct Run {
 pub fn run(
     seeds: u64,
     edges: EdgeErrors,
-    learn_edges: bool,
+    even_edges: bool,
     progress: impl FnMut(&str) + Send,
 ) -> Result<Vec<CaseResult>> {
     let seeds = seeds.max(1);
@@ -284,7 +284,7 @@ pub fn run(
                     break;
                 }
                 let c = job;
-                let out = run_case(&cases[c], &loaded[c], seeds, edges, learn_edges);
+                let out = run_case(&cases[c], &loaded[c], seeds, edges, even_edges);
                 if let Ok(mut d) = done.lock() {
                     d[job] = Some(out);
                 }
@@ -309,8 +309,8 @@ pub fn run(
             let runs: Vec<&Run> = per_seed.iter().map(|r| &r[m]).collect();
             let mut r = aggregate(case, robot, traj.as_ref(), mode, seeds, &runs)?;
             r.edges = edges.to_string();
-            if learn_edges {
-                r.edges.push_str("; `exact` learning them");
+            if even_edges {
+                r.edges.push_str("; `exact` taking them a count apart");
             }
             results.push(r);
         }
@@ -331,7 +331,7 @@ fn run_case(
     robot: &Robot,
     seeds: u64,
     edges: EdgeErrors,
-    learn_edges: bool,
+    even_edges: bool,
 ) -> Result<CaseRuns> {
     let traj = trajectory::build(case.trajectory)
         .with_context(|| format!("unknown trajectory {}", case.trajectory))?;
@@ -353,32 +353,33 @@ fn run_case(
         .with_context(|| format!("generating {} for {}", case.trajectory, robot.name))?;
         for (k, s) in streams.iter().enumerate() {
             // Seed 0's tracks are drawn (`accuracy --out`); the others are let go.
-            runs.push(run_seed(robot, s, first + k as u64 == 0, learn_edges)?);
+            runs.push(run_seed(robot, s, first + k as u64 == 0, even_edges)?);
         }
     }
     Ok(runs)
 }
 
 /// One seed's stream, replayed in every mode; `keep_tracks` for the seed the pictures draw;
-/// `learn_edges`: `exact` (and its twin) learn the encoders' edges, with time stamps.
+/// `even_edges`: `exact` (and its twin) take every edge a count after the last instead of
+/// learning them, with time stamps.
 fn run_seed(
     robot: &Robot,
     stream: &TickStream,
     keep_tracks: bool,
-    learn_edges: bool,
+    even_edges: bool,
 ) -> Result<Vec<Run>> {
     let placed_after_s = moving::placed_after_s(stream);
     let mut out = Vec::new();
     for mode in modes() {
         let (mut scores, mut skipped) = (Vec::new(), Vec::new());
-        let learn = learn_edges && mode == Mode::Timestamps;
-        let learning = |name: &str| match learn && name.starts_with("exact") {
-            true => format!("{name}{}", replay::LEARNED_EDGES),
+        let even = even_edges && mode == Mode::Timestamps;
+        let learning = |name: &str| match even && name.starts_with("exact") {
+            true => format!("{name}{}", replay::EVEN_EDGES),
             false => name.to_string(),
         };
         for name in replay::ALGORITHMS {
             match replay::replay(robot, stream, &learning(name), mode) {
-                // Under its own name in the tables: the edges line says it learns.
+                // Under its own name in the tables: the edges line says it does not learn.
                 Ok(s) => scores.push(Score {
                     name: name.to_string(),
                     ..s
