@@ -167,7 +167,7 @@ enum Command {
         edges: String,
         /// `exact` takes every edge a whole count after the last, as before it learned where
         /// each encoder puts the four edges of its quadrature cycle (with time stamps; the
-        /// boards always learn them): for a comparison. On `replay`: `--algorithm exact+even`.
+        /// slave always learns them): for a comparison. On `replay`: `--algorithm exact+even`.
         #[arg(long)]
         even_edges: bool,
     },
@@ -213,7 +213,7 @@ enum Command {
         /// Estimator to run (arc, lut, timing, exact; exact-f64, exact's float twin), or
         /// `all`. `exact+even` (or `exact-f64+even`): `exact` taking every edge a whole count
         /// after the last instead of learning where each encoder puts the four edges of its
-        /// quadrature cycle (time stamps only), as the boards never do: for a comparison.
+        /// quadrature cycle (time stamps only), as the slave never does: for a comparison.
         #[arg(long, default_value = "all")]
         algorithm: String,
         /// Write each algorithm's track (truth, estimate, error at every truth row) as

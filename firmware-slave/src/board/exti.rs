@@ -40,7 +40,7 @@ struct QueuedEdge {
 /// single-producer, single-consumer queue (heapless'): the producer is the encoder lines'
 /// handlers, which share one priority (none preempts another: one producer at a time), the
 /// consumer the odometry task's drain. embassy-sync's `Channel` took a critical section on each
-/// end and 330 B more of the slave's flash.
+/// end and 224 B more of the slave's flash.
 static mut EDGES: (Producer<'static, QueuedEdge>, Consumer<'static, QueuedEdge>) = {
     static mut QUEUE: Queue<QueuedEdge, 256> = Queue::new();
     // SAFETY: `QUEUE` is reachable only here, and split once, at compile time.
@@ -56,8 +56,8 @@ unsafe fn edge_producer() -> &'static mut Producer<'static, QueuedEdge> {
     unsafe { &mut (*ends).0 }
 }
 
-/// The consumer's end. SAFETY (the caller's): only from [`drain_edges`], which the one odometry
-/// task calls.
+/// The consumer's end. SAFETY (the caller's): only from [`drain_edges`], through the one
+/// [`EdgeCapture`] (its `new` is `unsafe` for that).
 unsafe fn edge_consumer() -> &'static mut Consumer<'static, QueuedEdge> {
     // SAFETY: as the caller promises, no other reference to it lives.
     let ends = &raw mut EDGES;
@@ -155,7 +155,11 @@ pub struct EdgeCapture(());
 
 impl EdgeCapture {
     /// Requires [`init`] to have run.
-    pub fn new() -> Self {
+    ///
+    /// # Safety
+    ///
+    /// At most one `EdgeCapture` may exist: its drain is the edge queue's one consumer.
+    pub unsafe fn new() -> Self {
         EdgeCapture(())
     }
 }
@@ -186,7 +190,7 @@ fn drain_edges(f: &mut dyn FnMut(EncoderEdge)) -> EdgeBatch {
         critical_section::with(|_| {
             (pending(ENCODER_LINES) == 0).then(|| {
                 let counters = [
-                    // Read-only register reads: the `Qei` drivers (`board/qei.rs`) own these timers.
+                    // Read-only register reads: `Counters` (`board/qei.rs`) owns these timers.
                     pac::TIM2.cnt().read().cnt(),
                     pac::TIM1.cnt().read().cnt(),
                 ];

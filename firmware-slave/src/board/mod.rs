@@ -51,7 +51,8 @@ pub fn init() -> Board {
     let led = bluepill::status_led(p.PC13);
     // After the timers and the SPI slave have set up PA0/1/4/8/9: route their edges.
     exti::init();
-    let edges = EdgeCapture::new();
+    // SAFETY: the one `EdgeCapture` (the odometry task's).
+    let edges = unsafe { EdgeCapture::new() };
 
     Board {
         counters,

@@ -3,7 +3,7 @@
 //!
 //! Set up through the registers (RM0008 §15.3.12, "Encoder interface mode") rather than
 //! embassy's `Qei`: its constructor is generic over the timer, and its two copies (TIM2, TIM1)
-//! took about 250 B of the slave's 32 KiB more than this one shared routine. The settings are
+//! took 380 B of the slave's 32 KiB more than this one shared routine. The settings are
 //! `Qei`'s with [`bluepill::ENCODER_QEI`] (the master's motors still use `Qei` with it).
 
 use embassy_stm32::gpio::{Input, Pull};

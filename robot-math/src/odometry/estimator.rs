@@ -264,23 +264,32 @@ impl Odometry {
         let layout = &self.layout;
         let n = layout.encoders();
         let q = self.positions_q16(t_ns);
-        let exact = *layout.exact();
-        let state = match (layout.carriage(), layout.abs()) {
-            (Some(c), Some(a)) => ExactState::Carriage(
-                CarriageExact::from_params(
-                    exact,
-                    c.trail_q40,
-                    a.bits,
+        // Each state written into `self.state` where it is made, not through a local: the
+        // locals and the copies between them made this frame the deepest of the slave's stack
+        // (936 B).
+        match (layout.carriage(), layout.abs()) {
+            (Some(c), Some(a)) => {
+                let (trail_q40, bits) = (c.trail_q40, a.bits);
+                let carriage = CarriageExact::from_params(
+                    *layout.exact(),
+                    trail_q40,
+                    bits,
                     body,
                     [q[0], q[1]],
                     self.abs,
                 )
                 // `Layout` guarantees two encoders and 1..=16 bits.
-                .ok_or(Unsupported::Geometry(GeometryError::WheelCount(n)))?,
-            ),
-            _ => ExactState::Body(ExactOdometry::new(exact, body, &q)),
-        };
-        self.state = State::Exact(state);
+                .ok_or(Unsupported::Geometry(GeometryError::WheelCount(n)))?;
+                self.state = State::Exact(ExactState::Carriage(carriage));
+            }
+            _ => {
+                self.state = State::Exact(ExactState::Body(ExactOdometry::new(
+                    *layout.exact(),
+                    body,
+                    &q,
+                )))
+            }
+        }
         self.state_changed();
         Ok(())
     }

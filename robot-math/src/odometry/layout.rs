@@ -232,7 +232,7 @@ impl Layout {
             let finite = [w.x, w.y, w.ux, w.uy].iter().all(|v| v.is_finite());
             if j >= n {
                 // An unused slot is all zero bits, as `NO_WHEEL` (compared as bits: an f64
-                // equality was the slave's last soft-float routine, 80 B of its flash).
+                // equality was the slave's last soft-float routine, 68 B of its flash).
                 if [w.x, w.y, w.ux, w.uy, m].iter().any(|v| v.to_bits() != 0) {
                     return Err(LayoutError::EncoderCount(j + 1));
                 }

@@ -181,8 +181,9 @@ fn reciprocal_q56(s: u32) -> u32 {
     r + ((r as u64 * (e >> 20)) >> 36) as u32
 }
 
-/// ⌊n·2^24 / d⌋ for `n` < 2^22 and `d` < 2^22, by three 32-bit divisions (long division, ten,
-/// ten and four bits at a time): exactly the 64-bit quotient.
+/// ⌊n·2^24 / d⌋ for `n` < 2^22, `d` ≤ 2^22 and `n` < 2^8·`d` (the quotient under 2^32), by three
+/// 32-bit divisions (long division, ten, ten and four bits at a time): exactly the 64-bit
+/// quotient. (The fit's: `n` ≤ 2^21, `d` ≥ 0.23·2^24.)
 fn div_q24(n: u32, d: NonZeroU32) -> u32 {
     let (q1, r1) = ((n << 10) / d, (n << 10) % d);
     let (q2, r2) = ((r1 << 10) / d, (r1 << 10) % d);

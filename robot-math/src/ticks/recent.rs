@@ -1,16 +1,17 @@
 //! Ticks kept at the edge and put through their wheel's [`TickTracker`] at the next update.
 //!
-//! On the slave an edge should cost as little as possible (issue 11: ≤ 60 instructions; the
+//! On the slave an edge should cost as little as possible (its budget: ≤ 60 instructions; the
 //! edge interrupts of four wheels at several kHz each add up), while the tracker's own work
-//! per tick (its edge, its two intervals) is about 70. That work need not be done per tick:
-//! after any run of ticks a tracker's state depends on its count and on its **last three
-//! ticks only** — its edge on the count and the last step, its interval on the last two
-//! ticks' times and directions, its interval before that on the last three's, and what it
-//! learns of its encoder's edges on its last nine (the window of two cycles it learns from,
-//! [`super::edges`]). So the edge only keeps its time and step in a ring, and
-//! [`TickTracker::catch_up`] replays the last nine at most when the wheel's position is next needed: bit for bit what
-//! ticking every one of them would have left, and a bounded amount of work per wheel per
-//! update however fast the wheel turns.
+//! per tick (its edge, its intervals, its edge learner's window) is more. That work need not be
+//! done per tick: after any run of ticks a tracker's state depends on its count and on its
+//! **last nine ticks only** — its edge on the count and the last step, its interval on the last
+//! two ticks' times and directions, its interval before that on the last three's, and its edge
+//! learner's window on the intervals between the last nine ([`super::edges`]: eight slots, each
+//! overwritten by the next tick over its edge, or all cleared by a reversal). So the edge only
+//! keeps its time and step in a ring, and [`TickTracker::catch_up`] replays the last nine at
+//! most when the wheel's position is next needed: bit for bit what ticking every one of them
+//! would have left, and a bounded amount of work per wheel per update however fast the wheel
+//! turns.
 //!
 //! Only for a wheel whose first ticks have placed it ([`TickTracker::placing`] false): while
 //! they are gathered every tick feeds the start fit, which needs each one.
@@ -78,7 +79,9 @@ impl TickTracker {
         for i in 0..replayed {
             let k = (first.wrapping_add(i) & MASK) as usize;
             // An earlier tick's interval, from a state older than its own tick before it, is
-            // overwritten by the next two: only the last three ticks' intervals survive.
+            // overwritten by the ticks after it: the tracker's intervals by the next two, the
+            // learner's window slot by the eighth tick after it one way (or a reversal clears
+            // it), so only what the last nine ticks make survives.
             self.advance(recent.t_ns[k], recent.steps[k]);
         }
     }
