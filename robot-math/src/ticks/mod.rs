@@ -181,12 +181,13 @@ impl TickTracker {
 
     /// Learn the encoder's edges from the last two cycles, if the last tick completed them
     /// (at an update: the slave's edges only keep their time). Once the edges are known well
-    /// enough, a wheel its own first ticks placed is placed again, on the edges they really
-    /// crossed. Integer-only.
+    /// enough, and found uneven ([`edges::UNEVEN_Q16`]), a wheel its own first ticks placed is
+    /// placed again, on the edges they really crossed. Integer-only.
     pub fn learn(&mut self) {
         // Once: the count of windows reaches it once (it starts again only with the table).
         if self.learner.learn(self.edge, self.dir)
             && self.learner.table().windows() == REPLACE_AFTER
+            && self.learner.table().uneven()
         {
             self.place_on_learned_edges();
         }
