@@ -27,7 +27,7 @@ Writes DIR/<case>.toml (the robot) and DIR/<case>-<edges>-<seed>.csv (the stream
 Writes every case at every edge placement for seeds 0..N-1, replays each with
 `host-bench replay --json` (default target/debug/host-bench) and prints, per case and edge
 placement, each method's maximum error (median and max over the seeds), the best baseline's,
-and exact's ratio to it. `exact` learns each encoder's edges while it moves, as the boards do;
+and exact's ratio to it. `exact` learns each encoder's edges while it moves, as the slave does;
 with --even-edges its column is `exact+even` (every edge a count after the last, as before it
 learned them), for a comparison.
 """

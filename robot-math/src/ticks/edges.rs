@@ -98,17 +98,18 @@ impl EdgeTable {
     /// (ns, oldest first), the last tick over edge `last_edge` going `dir`. A window whose
     /// motion is not smooth enough to measure (see [`MAX_SKEW`], [`MAX_DISAGREEMENT`]), or
     /// longer than 2^32 ns (4.3 s), changes nothing; returns whether it was taken.
-    // Out of line and in 32 bits where it can be: the slave's flash has little room (one copy,
-    // hardware divisions, one 64-bit one for the window's scale and one for the fit).
+    // Out of line and in 32 bits: the slave's flash has little room (one copy), and its
+    // divisions are the M3's 32-bit ones (`reciprocal_q56`, `div_q24`).
     #[inline(never)]
     pub fn learn(&mut self, intervals: &[u32; WINDOW - 1], last_edge: i64, dir: i8) -> bool {
         let Some(measured) = measure(intervals) else {
             return false;
         };
         // The deviations are along the travel; the offsets on the encoder's own scale. Only
-        // the low two bits of an edge say its kind.
+        // the low two bits of an edge say its kind, and the window's first edge, eight before
+        // the last, is of the last one's.
         let d = dir as i32;
-        let first_kind = (last_edge as i32).wrapping_sub(8 * d);
+        let first_kind = last_edge as i32;
         // A running mean at first (the n-th window weighs 1/(n+1)), then a fixed gain.
         let gain = (self.windows as i32 + 1).min(SETTLED as i32);
         let mut i = 0;

@@ -373,12 +373,12 @@ fn run_seed(
     for mode in modes() {
         let (mut scores, mut skipped) = (Vec::new(), Vec::new());
         let even = even_edges && mode == Mode::Timestamps;
-        let learning = |name: &str| match even && name.starts_with("exact") {
+        let as_run = |name: &str| match even && name.starts_with("exact") {
             true => format!("{name}{}", replay::EVEN_EDGES),
             false => name.to_string(),
         };
         for name in replay::ALGORITHMS {
-            match replay::replay(robot, stream, &learning(name), mode) {
+            match replay::replay(robot, stream, &as_run(name), mode) {
                 // Under its own name in the tables: the edges line says it does not learn.
                 Ok(s) => scores.push(Score {
                     name: name.to_string(),
@@ -392,7 +392,7 @@ fn run_seed(
         }
         let mut vs_f64 = (0.0f64, 0.0f64);
         if let Some(fixed) = scores.iter().find(|s| s.name == "exact") {
-            let twin = replay::replay(robot, stream, &learning(replay::ORACLE), mode)?;
+            let twin = replay::replay(robot, stream, &as_run(replay::ORACLE), mode)?;
             for ((_, a, _), (_, b, _)) in fixed.track.iter().zip(&twin.track) {
                 vs_f64.0 = vs_f64.0.max(a.distance_to(*b));
                 vs_f64.1 = vs_f64
