@@ -472,7 +472,7 @@ fn drive(
         if due {
             if interpolate {
                 // What `exact` does at its update: its f64 twin reads these wheels.
-                wheels[..n].iter_mut().for_each(TickTracker::learn);
+                robot_math::ticks::learn_edges(&mut wheels[..n]);
             }
             pose = Some(est.update(t, &wheels, interpolate));
             changed = false;

@@ -5,7 +5,7 @@ use core::mem::MaybeUninit;
 use super::{Layout, Method, SensorKind, Unsupported};
 use crate::carriage::CarriageExact;
 use crate::exact::{ExactOdometry, FixedPose, MAX_ENCODERS};
-use crate::ticks::{tick_wheel, RecentTicks, TickTracker};
+use crate::ticks::{learn_edges, tick_wheel, RecentTicks, TickTracker};
 use crate::wheelset::GeometryError;
 
 // The float baselines (`arc`, `lut`, `timing`): the host always has them; a slave image only
@@ -319,16 +319,19 @@ impl Odometry {
         }
     }
 
-    /// Ticks mode's positions: each wheel's waiting ticks caught up, then interpolated to `t_ns`.
+    /// Ticks mode's positions: each wheel's waiting ticks caught up, its edges learned (and
+    /// the wheels placed again once they are: [`learn_edges`]), then interpolated to `t_ns`.
     fn interpolate_positions(&mut self, t_ns: u64) {
         let n = self.layout.encoders().min(MAX_ENCODERS);
         let out = &mut self.positions[..n];
-        let wheels = self.trackers.iter_mut().zip(&mut self.recent);
-        for ((p, (tracker, recent)), &count) in out.iter_mut().zip(wheels).zip(&self.counts) {
+        let (trackers, recent) = (&mut self.trackers[..n], &mut self.recent[..n]);
+        for ((tracker, recent), &count) in trackers.iter_mut().zip(recent).zip(&self.counts) {
             if recent.any() {
                 tracker.catch_up(count, recent);
             }
-            tracker.learn();
+        }
+        learn_edges(trackers);
+        for (p, tracker) in out.iter_mut().zip(trackers.iter()) {
             *p = tracker.position_q16(t_ns);
         }
     }

@@ -77,8 +77,6 @@ const REPLACE_AFTER: u8 = edges::SETTLED / 2;
 /// edges, [`TickTracker::learn`] places it once more).
 pub const PLACING_TICKS: usize = 4;
 
-/// A place inside a count never reaches its upper edge: 1 - 2^-16.
-const MAX_FRACTION: i64 = 0xFFFF;
 /// Where a wheel is taken to stand inside its count before its ticks say: the middle, so the
 /// error is at most half a count either way.
 const UNKNOWN_PHASE_Q16: i64 = 1 << 15;
@@ -181,16 +179,21 @@ impl TickTracker {
 
     /// Learn the encoder's edges from the last two cycles, if the last tick completed them
     /// (at an update: the slave's edges only keep their time). Once the edges are known well
-    /// enough, and found uneven ([`edges::UNEVEN_Q16`]), a wheel its own first ticks placed is
-    /// placed again, on the edges they really crossed. Integer-only.
-    pub fn learn(&mut self) {
+    /// enough, and found uneven ([`edges::UNEVEN_Q16`]), the wheel's start is fitted again on
+    /// the edges its first ticks really crossed; `true` then, and the caller places the wheels
+    /// that fit cannot place together again ([`place_together`], on their learned edges).
+    /// Integer-only.
+    pub fn learn(&mut self) -> bool {
         // Once: the count of windows reaches it once (it starts again only with the table).
-        if self.learner.learn(self.edge, self.dir)
+        let refit = self.learner.learn(self.edge, self.dir)
             && self.learner.table().windows() == REPLACE_AFTER
-            && self.learner.table().uneven()
-        {
-            self.place_on_learned_edges();
+            && self.learner.table().uneven();
+        if refit {
+            // Uneven edges can make an abrupt start's first ticks look like a start from rest:
+            // a fit that took them is undone when the learned edges say otherwise.
+            self.placed = self.place_on_learned_edges();
         }
+        refit
     }
 
     /// Learn this wheel's edges from now on ([`learn`](Self::learn); the default), or not
@@ -209,32 +212,47 @@ impl TickTracker {
     /// The start fit on the first ticks gathered, at their learned edges (whole counts until
     /// some are learned). Fitted again once the edges are known ([`learn`](Self::learn)), a
     /// wheel its own first ticks placed is placed better, and one they could not (an uneven
-    /// edge made them look like an abrupt start) may be placed now.
+    /// edge made them look like an abrupt start) may be placed now. Whether the fit placed it
+    /// (else the wheel keeps what it had).
     #[cold]
     #[inline(never)]
-    fn place_on_learned_edges(&mut self) {
+    fn place_on_learned_edges(&mut self) -> bool {
         let Some(first) = self.first.get(..self.gathered as usize) else {
-            return;
+            return false;
         };
+        let places = self.first_places_q16();
+        let places: [i64; PLACING_TICKS] = core::array::from_fn(|k| places[k + 1] << 8);
+        let Some(u) = start::start_position_on_q16(self.start_ns, first, &places) else {
+            return false;
+        };
+        self.set_start(u);
+        self.placed = true;
+        true
+    }
+
+    /// Where the count's other edge and the first direction's first four ticks' edges lie
+    /// (`[k + 1]` for the `k`-th tick's from 0), Q16 counts along that direction from the
+    /// count's first edge's whole-count place (c0 forward, c0 + 1 backward): `k + 1`, moved by
+    /// the edge's learned offset. Out of line: the start's fits call it for a wheel's first
+    /// ticks only.
+    #[inline(never)]
+    fn first_places_q16(&self) -> [i64; PLACING_TICKS + 1] {
         let d = self.first_dir as i64;
-        // Forward the first ticks cross edges c0 + 1, c0 + 2, ..., backward c0, c0 − 1, ...;
-        // their places along the travel from the count's first edge's whole-count place (c0
-        // forward, c0 + 1 backward): k + 1 for the k-th from 0, moved by its learned offset.
-        let first_edge = if d > 0 {
+        let first = if d > 0 {
             self.start_count + 1
         } else {
             self.start_count
         };
-        let places: [i64; PLACING_TICKS] = core::array::from_fn(|k| {
-            let edge = first_edge + d * k as i64;
-            ((k as i64 + 1) << 24) + ((d * self.learner.offset_q16(edge)) << 8)
-        });
-        if let Some(u) = start::start_position_on_q16(self.start_ns, first, &places) {
-            // `u` counts the first direction's ticks from the start; backwards the first edge
-            // is the count's lower one.
-            self.phase_q16 = if d > 0 { u } else { (1 << 16) - u };
-            self.placed = true;
-        }
+        core::array::from_fn(|i| {
+            let k = i as i64 - 1;
+            ((k + 1) << 16) + d * self.learner.offset_q16(first + d * k)
+        })
+    }
+
+    /// The start `u` (Q16, along the first direction from the count's first edge's place) as
+    /// the phase: backwards the first edge is the count's lower one.
+    fn set_start(&mut self, u: i64) {
+        self.phase_q16 = if self.first_dir > 0 { u } else { (1 << 16) - u };
     }
 
     /// The encoder's edges as learned so far.
@@ -243,29 +261,37 @@ impl TickTracker {
     }
 
     /// A wheel its own first ticks could not place, moving at its first interval's speed:
-    /// the window `[t1 − interval, t1]` (not before power-on) in which it must have started
-    /// for its start to lie inside its count.
+    /// the window `[t1 − before, t1]` (not before power-on) in which it must have started for
+    /// its start to lie inside its count (`before`: the time from the count's other edge to
+    /// the first tick's at that speed; the first interval itself on even edges), and the
+    /// first interval.
     fn start_window(&self) -> Option<(u64, u64, u64)> {
         if self.placed || self.first_len < 2 {
             return None;
         }
         let (t1, t2) = (self.first[0], self.first[1]);
         let interval = t2.checked_sub(t1).filter(|&i| i > 0 && i < 1 << 40)?;
-        Some((t1.saturating_sub(interval).max(self.start_ns), t1, interval))
+        let [p0, p1, p2, ..] = self.first_places_q16();
+        // Learned offsets stay within 0.4 count of their places: a span is 0.2 to 1.8 counts
+        // (positive, under 2^17), and `interval < 2^40`, so the product fits 64 bits.
+        let before = (interval * (p1 - p0) as u64).checked_div((p2 - p1) as u64)?;
+        Some((t1.saturating_sub(before).max(self.start_ns), t1, interval))
     }
 
     /// Place an unplaced wheel as if it started at `t_start` at its first interval's speed.
     fn place_from(&mut self, t_start: u64) {
-        if let Some((_, t1, interval)) = self.start_window() {
-            let before = t1.saturating_sub(t_start).min(interval);
-            // u = 1 − (t1 − t_start) / interval, Q16, inside [0, 1).
-            // `before ≤ interval < 2^40`: the shift fits; `checked_div` keeps panics out.
-            let Some(frac) = (before << 16).checked_div(interval) else {
+        if let Some((earliest, t1, interval)) = self.start_window() {
+            let [p0, p1, p2, ..] = self.first_places_q16();
+            // `earliest ≤ t_start ≤ t1` ([`place_together`]'s common window).
+            let before = t1.saturating_sub(t_start.max(earliest));
+            // u = p1 − (p2 − p1) · (t1 − t_start) / interval, Q16, inside the count:
+            // [p0, p1). `before` is at most a few intervals (under 2^41), the span under 2^17:
+            // the product fits; `checked_div` keeps panics out.
+            let Some(frac) = (before * (p2 - p1) as u64).checked_div(interval) else {
                 return;
             };
-            let u = (1 << 16) - frac as i64;
-            let u = u.clamp(0, MAX_FRACTION);
-            self.phase_q16 = if self.first_dir > 0 { u } else { (1 << 16) - u };
+            // `max`, `min`: `clamp` keeps a panic for bounds it cannot see are in order.
+            self.set_start((p1 - frac as i64).max(p0).min(p1 - 1));
         }
     }
 
@@ -371,6 +397,9 @@ fn mul_q16(a: i32, b: i32) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A place inside a count (of even edges) never reaches its upper edge: 1 - 2^-16.
+    const MAX_FRACTION: i64 = 0xFFFF;
 
     #[test]
     fn constant_speed_is_interpolated_exactly() {
@@ -489,6 +518,68 @@ mod tests {
     }
 
     #[test]
+    fn an_abrupt_start_on_uneven_edges_is_placed_together_once_they_are_learned() {
+        // At rest for 1 s, then at full speed at once, on encoders whose edges sit off their
+        // whole-count places by a HEDS-9040's typical state widths (counts, by edge mod 4).
+        let start = 1_000_000_000u64;
+        let (a, b) = (
+            [0.0267, -0.0289, -0.0175, 0.0196],
+            [-0.0117, -0.0321, 0.0235, 0.0203],
+        );
+        let b2 = [0.0235, 0.0203, -0.0117, -0.0321];
+        // Each of the first three lands outside its bound when the wheels are placed together
+        // on even edges only (at their first ticks, before anything is learned).
+        for (offsets, phases, speeds) in [
+            ([a, b], [0.05, 0.05], [1300.0, 700.0]),
+            ([a, b], [0.05, 0.41], [1300.0, 700.0]),
+            ([a, b2], [0.23, 0.05], [1300.0, 700.0]),
+            ([a, b], [0.7458, 0.5666], [1300.0, 700.0]),
+            ([a, b], [0.4315, 0.8833], [700.0, 1300.0]),
+            ([b, a], [0.25, 0.55], [1000.0, 900.0]),
+        ] {
+            // (time, wheel) of each wheel's first 300 edges, in time order.
+            let mut ticks: Vec<(u64, usize)> = (0..2)
+                .flat_map(|j| {
+                    let (off, phi, v) = (offsets[j], phases[j], speeds[j]);
+                    (1..=300).map(move |m: i64| {
+                        let place = m as f64 + off[(m & 3) as usize];
+                        (start + ((place - phi) / v * 1e9) as u64, j)
+                    })
+                })
+                .collect();
+            ticks.sort();
+            let mut wheels = [TickTracker::starting(0, 0), TickTracker::starting(0, 0)];
+            for (t, j) in ticks {
+                tick_wheel(&mut wheels, j, t, 1);
+                // An update after every tick.
+                learn_edges(&mut wheels);
+            }
+            // The window each wheel's start must lie in (s): from where its count's lower
+            // edge is to its first tick's, at its first interval's speed; and their overlap.
+            let window = |j: usize| {
+                let (off, phi, v) = (offsets[j], phases[j], speeds[j]);
+                let t1 = (1.0 + off[1] - phi) / v;
+                (t1 - (1.0 + off[1] - off[0]) / v, t1)
+            };
+            let (lo, hi) = (window(0).0.max(window(1).0), window(0).1.min(window(1).1));
+            for ((w, phi), v) in wheels.iter().zip(phases).zip(speeds) {
+                assert!(
+                    !w.placed,
+                    "{phases:?}: no fit tells an abrupt start's instant"
+                );
+                let got = w.phase_q16() as f64 / 65536.0;
+                // Within half the common window at its own speed (the bound on even edges),
+                // give or take what learning leaves: 0.01 count.
+                let bound = (hi - lo) / 2.0 * v + 0.01;
+                assert!(
+                    (got - phi).abs() < bound,
+                    "{phases:?}: {got} vs {phi}, bound {bound}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn corrupt_steps_are_ignored() {
         let mut w = TickTracker::new();
         w.tick(1, 3);
@@ -514,6 +605,19 @@ pub fn tick_wheel(wheels: &mut [TickTracker], j: usize, t_ns: u64, step: i8) -> 
         place_together(wheels);
     }
     Some(count)
+}
+
+/// Each wheel learns its edges, as at an update ([`TickTracker::learn`]); if one was fitted
+/// again on them, the wheels no fit places are placed together again ([`place_together`], on
+/// their learned edges). Integer-only.
+pub fn learn_edges(wheels: &mut [TickTracker]) {
+    let mut refit = false;
+    for w in wheels.iter_mut() {
+        refit |= w.learn();
+    }
+    if refit {
+        place_together(wheels);
+    }
 }
 
 /// Wheels that their own first ticks could not place started moving together: after a rest
