@@ -2,7 +2,7 @@
 //! against the small traits in [`ports`] and `embassy_time`, so the same code runs on the
 //! STM32F103 (board layer in `main.rs` + `board/`) and inside the host emulator.
 //!
-//! Two tasks, joined in [`run`]:
+//! Two tasks, run together in [`run`]:
 //! * the **odometry task** samples the sensors on a fixed-rate ticker (the timers' counters,
 //!   or every time-stamped encoder edge with the counters that match them, and the absolute
 //!   encoder), extends the 16-bit counts to 64-bit totals and hands everything to the
@@ -29,7 +29,7 @@ mod upload_tests;
 pub mod board_rate;
 pub use odometry_task::odometry_task;
 
-use embassy_futures::join::join;
+use embassy_futures::select::{select, Either};
 use embassy_time::Instant;
 use protocol::spi::{self, MasterFrame, SPI_FRAME_LEN};
 use robot_math::odometry::Layout;
@@ -153,12 +153,16 @@ pub async fn run(
     config: &SlaveConfig,
 ) -> ! {
     let clock = FrameClock::start();
-    join(
+    // `select`, not `join`: neither ever ends, and select polls them in the same order
+    // without join's slots for their outputs (the slave's flash).
+    match select(
         odometry_task(counters, edges, abs, shared, config, clock, cycles),
         spi_task(spi, shared, clock),
     )
     .await
-    .0
+    {
+        Either::First(never) | Either::Second(never) => never,
+    }
 }
 
 /// Answer the master's polls: arm the latest frame, check what came back.

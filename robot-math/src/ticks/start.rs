@@ -57,6 +57,12 @@ fn div(ok: &mut bool, a: i64, b: i64) -> i64 {
     checked(ok, a.checked_mul(ONE).and_then(|n| n.checked_div(b)))
 }
 
+/// `a·b`, unscaled; past 64 bits, 0 with `ok` cleared. Out of line as [`mul`].
+#[inline(never)]
+fn raw(ok: &mut bool, a: i64, b: i64) -> i64 {
+    checked(ok, a.checked_mul(b))
+}
+
 /// The value, or 0 with `ok` cleared.
 #[inline(never)]
 fn checked(ok: &mut bool, v: Option<i64>) -> i64 {
@@ -199,13 +205,9 @@ impl Poly {
             };
         }
         // Roots (−c2 ± √(c2² − 3 c1 c3)) / (3 c3); the discriminant in Q48.
-        let disc = checked(
-            ok,
-            c2.checked_mul(c2).and_then(|square| {
-                let product = c1.checked_mul(c3)?.checked_mul(3)?;
-                square.checked_sub(product)
-            }),
-        );
+        let c1_c3 = raw(ok, c1, c3);
+        let (square, product) = (raw(ok, c2, c2), raw(ok, c1_c3, 3));
+        let disc = checked(ok, square.checked_sub(product));
         if disc < 0 {
             return None;
         }
