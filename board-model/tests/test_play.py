@@ -40,13 +40,13 @@ class TestPlay(unittest.TestCase):
     def tearDownClass(cls):
         cls.dir.cleanup()
 
-    def play(self, sensor, *play_args, model_args=()):
+    def play(self, sensor, *play_args, model_args=(), ticks=None):
         r = subprocess.run(
             [
                 *board_model("play-check"),
                 *model_args,
                 "--ticks",
-                self.ticks,
+                ticks or self.ticks,
                 "--sensor",
                 sensor,
                 "--host-bench",
@@ -68,6 +68,32 @@ class TestPlay(unittest.TestCase):
 
     def test_timestamps(self):
         self.play("timestamps")
+
+    def test_an_abrupt_start_on_uneven_edges(self):
+        """The slave learning uneven edges and placing an abrupt start again on them: seed
+        001's robot at rest for 0.5 s, then arcs at once, on HEDS-9040 typical edges inside a
+        revolution, seed 1 (where one wheel's own first fit took its uneven first ticks for a
+        start from rest and the learned edges undo it). `host-bench generate` writes it."""
+        ticks = os.path.join(self.dir.name, "rest-then-arcs.csv")
+        subprocess.run(
+            [
+                HOST_BENCH,
+                "generate",
+                "--robot",
+                os.path.join(ROOT, "robots", "seed001.toml"),
+                "--trajectory",
+                "rest-then-arcs",
+                "--edges",
+                "typical-cycle",
+                "--seed",
+                "1",
+                "--out",
+                ticks,
+            ],
+            check=True,
+            capture_output=True,
+        )
+        self.play("timestamps", ticks=ticks)
 
     def test_counts(self):
         self.play("counts")
