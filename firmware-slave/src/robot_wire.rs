@@ -115,14 +115,14 @@ impl Upload {
     // `odometry_task`'s `wire_pose`.
     #[inline(never)]
     pub fn commit(&mut self, header: &RobotHeader, into: &mut Layout) -> Result<(), UploadError> {
-        let built = self.build(header);
+        let built = self.build(header, into);
         *self = Upload::default();
-        *into = built?;
-        Ok(())
+        built
     }
 
-    /// The layout the parts and `header` describe.
-    fn build(&self, header: &RobotHeader) -> Result<Layout, UploadError> {
+    /// Write the layout the parts and `header` describe into `into` (left as it was on
+    /// `Err`): built where it is kept, not returned and copied.
+    fn build(&self, header: &RobotHeader, into: &mut Layout) -> Result<(), UploadError> {
         let n = (header.encoders as usize).min(MAX_ENCODERS);
         let mut wheels = [WheelPart::default(); MAX_ENCODERS];
         let mut exact = [ExactPart::default(); MAX_ENCODERS];
@@ -144,7 +144,7 @@ impl Upload {
             exact.map(|e| e.kth),
         )
         .map_err(|_| UploadError::Layout)?;
-        Layout::from_parts(
+        into.set_parts(
             n as u8,
             wheels.map(|w| Wheel {
                 x: w.x_m,

@@ -220,48 +220,7 @@ impl Layout {
         carriage: Option<CarriageLayout>,
         abs: Option<AbsLayout>,
     ) -> Result<Layout, LayoutError> {
-        let n = encoders as usize;
-        if !(2..=MAX_ENCODERS).contains(&n) {
-            return Err(LayoutError::EncoderCount(n));
-        }
-        if exact.encoders() != n {
-            return Err(LayoutError::ConstantsMismatch(exact.encoders()));
-        }
-        for j in 0..MAX_ENCODERS {
-            let (w, m) = (wheels[j], metres_per_count[j]);
-            let finite = [w.x, w.y, w.ux, w.uy].iter().all(|v| v.is_finite());
-            if j >= n {
-                // An unused slot is all zero bits, as `NO_WHEEL` (compared as bits: an f64
-                // equality was the slave's last soft-float routine, 68 B of its flash).
-                if [w.x, w.y, w.ux, w.uy, m].iter().any(|v| v.to_bits() != 0) {
-                    return Err(LayoutError::EncoderCount(j + 1));
-                }
-            } else if !finite {
-                return Err(LayoutError::NotFinite { encoder: j });
-            } else if !(m.is_finite() && m > 0.0) {
-                return Err(LayoutError::MetresPerCount { encoder: j });
-            }
-        }
-        if let Some(a) = abs {
-            if !(1..=16).contains(&a.bits) {
-                return Err(LayoutError::AbsBits(a.bits));
-            }
-        }
-        if let Some(c) = carriage {
-            if n != 2 {
-                return Err(LayoutError::CarriageEncoders(n));
-            }
-            if abs.is_none() {
-                return Err(LayoutError::CarriageNeedsAbsoluteEncoder);
-            }
-            // The pivot's constants (what the fixed-point carriage integrates) must fit too.
-            if !c.trail_m.is_finite()
-                || c.trail_q40.unsigned_abs() >= MAX_TRAIL_Q40 as u64
-                || crate::carriage::pivot_params(exact, c.trail_q40).is_none()
-            {
-                return Err(LayoutError::CarriageTrail);
-            }
-        }
+        check_parts(encoders, &wheels, &metres_per_count, &exact, carriage, abs)?;
         Ok(Layout {
             encoders,
             wheels,
@@ -270,6 +229,28 @@ impl Layout {
             carriage,
             abs,
         })
+    }
+
+    /// [`from_parts`](Self::from_parts) written over this layout, which stays as it was on
+    /// `Err`: on a board the layout is rebuilt where it is kept, not in a value returned and
+    /// copied (the slave's robot upload: 1.3 KB of stack, and flash).
+    pub fn set_parts(
+        &mut self,
+        encoders: u8,
+        wheels: [Wheel; MAX_ENCODERS],
+        metres_per_count: [f64; MAX_ENCODERS],
+        exact: ExactParams,
+        carriage: Option<CarriageLayout>,
+        abs: Option<AbsLayout>,
+    ) -> Result<(), LayoutError> {
+        check_parts(encoders, &wheels, &metres_per_count, &exact, carriage, abs)?;
+        self.encoders = encoders;
+        self.wheels = wheels;
+        self.metres_per_count = metres_per_count;
+        self.exact = exact;
+        self.carriage = carriage;
+        self.abs = abs;
+        Ok(())
     }
 
     /// A carriage layout from robot-math's [`CarriageGeometry`] (its wheels left then right
@@ -398,4 +379,58 @@ impl Layout {
         (forward(l) && forward(r) && same && l.y > 0.0 && libm::fabs(l.y + r.y) < 1e-9)
             .then_some((kl, l.y - r.y))
     }
+}
+
+/// What [`Layout::from_parts`] checks: that the parts fit together.
+fn check_parts(
+    encoders: u8,
+    wheels: &[Wheel; MAX_ENCODERS],
+    metres_per_count: &[f64; MAX_ENCODERS],
+    exact: &ExactParams,
+    carriage: Option<CarriageLayout>,
+    abs: Option<AbsLayout>,
+) -> Result<(), LayoutError> {
+    let n = encoders as usize;
+    if !(2..=MAX_ENCODERS).contains(&n) {
+        return Err(LayoutError::EncoderCount(n));
+    }
+    if exact.encoders() != n {
+        return Err(LayoutError::ConstantsMismatch(exact.encoders()));
+    }
+    for j in 0..MAX_ENCODERS {
+        let (w, m) = (wheels[j], metres_per_count[j]);
+        let finite = [w.x, w.y, w.ux, w.uy].iter().all(|v| v.is_finite());
+        if j >= n {
+            // An unused slot is all zero bits, as `NO_WHEEL` (compared as bits: an f64
+            // equality was the slave's last soft-float routine, 68 B of its flash).
+            if [w.x, w.y, w.ux, w.uy, m].iter().any(|v| v.to_bits() != 0) {
+                return Err(LayoutError::EncoderCount(j + 1));
+            }
+        } else if !finite {
+            return Err(LayoutError::NotFinite { encoder: j });
+        } else if !(m.is_finite() && m > 0.0) {
+            return Err(LayoutError::MetresPerCount { encoder: j });
+        }
+    }
+    if let Some(a) = abs {
+        if !(1..=16).contains(&a.bits) {
+            return Err(LayoutError::AbsBits(a.bits));
+        }
+    }
+    if let Some(c) = carriage {
+        if n != 2 {
+            return Err(LayoutError::CarriageEncoders(n));
+        }
+        if abs.is_none() {
+            return Err(LayoutError::CarriageNeedsAbsoluteEncoder);
+        }
+        // The pivot's constants (what the fixed-point carriage integrates) must fit too.
+        if !c.trail_m.is_finite()
+            || c.trail_q40.unsigned_abs() >= MAX_TRAIL_Q40 as u64
+            || crate::carriage::pivot_params(*exact, c.trail_q40).is_none()
+        {
+            return Err(LayoutError::CarriageTrail);
+        }
+    }
+    Ok(())
 }
