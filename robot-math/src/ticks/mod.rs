@@ -59,7 +59,8 @@ pub struct TickTracker {
     /// back first).
     first_len: u8,
     first_dir: i8,
-    /// That position, Q16 counts above the count at power-on (φ ∈ [0, 1]); half a count
+    /// That position, Q16 counts above the count at power-on (φ ∈ [0, 1]; on learned uneven
+    /// edges between the count's own edges, which lie up to 0.4 count off); half a count
     /// until a fit places it.
     phase_q16: i64,
     /// A fit of the wheel's own first ticks placed it.
@@ -169,26 +170,43 @@ impl TickTracker {
     #[inline(never)]
     fn fit_start(&mut self, t_ns: u64, step: i8) {
         let n = self.first_len as usize;
-        if n != 0 && step != self.first_dir {
-            // The wheel turned back: keep what we have.
-            self.first_len = SPAN_TICKS;
-            return;
-        }
         // The first four, then the fifth in the fourth's place, then the fifth and the ninth in
         // the last two: the times stay in order ([`fit_ticks`](Self::fit_ticks)).
         let f = &mut self.first;
-        match n {
-            0..PLACING_TICKS => f[n] = t_ns,
-            4 => f[3] = t_ns,
-            8 => (f[2], f[3]) = (f[3], t_ns),
-            _ => {}
+        let go_on = match n {
+            // The wheel turned back: keep what we have.
+            _ if n != 0 && step != self.first_dir => false,
+            0..PLACING_TICKS => {
+                f[n] = t_ns;
+                true
+            }
+            4 => {
+                f[3] = t_ns;
+                true
+            }
+            // Only if the wheel went on from the fifth at least half as fast as it came to it
+            // (t9 − t5 ≤ 2 (t5 − t1), without differences: the times grow; wrapping only for
+            // times past a century): a pause or a stop in between would leave the cubic
+            // nothing to follow. Else the fifth stays.
+            8 => {
+                let on = t_ns.wrapping_add(f[0].wrapping_mul(2)) <= f[3].wrapping_mul(3);
+                if on {
+                    (f[2], f[3]) = (f[3], t_ns);
+                }
+                on
+            }
+            _ => true,
+        };
+        if !go_on {
+            self.first_len = SPAN_TICKS;
+            return;
         }
         self.first_dir = step;
         self.first_len += 1;
         self.gathered = self.first_len;
-        // Nothing is learned yet (a window is nine ticks one way; a wheel gathers at most four
-        // before this ends), so its edges are whole counts: the fit on the learned places is
-        // the fit on even ones, and one copy of it serves both (the slave's flash).
+        // The first fit, on the first four: nothing is learned yet (a window is nine ticks one
+        // way), so their edges are whole counts, the fit on the learned places is the fit on
+        // even ones, and one copy of it serves both (the slave's flash).
         if n < PLACING_TICKS {
             self.place_on_learned_edges();
         }
@@ -271,7 +289,14 @@ impl TickTracker {
         } else {
             self.start_count
         };
-        ((k + 1) << 16) + d * self.learner.offset_q16(first + d * k)
+        // Edges not found uneven are whole counts here, as before anything was learned: what a
+        // window learns of even edges is its time stamps' rounding.
+        let offset = if self.learner.table().uneven() {
+            self.learner.offset_q16(first + d * k)
+        } else {
+            0
+        };
+        ((k + 1) << 16) + d * offset
     }
 
     /// The start `u` (Q16, along the first direction from the count's first edge's place) as
@@ -312,7 +337,8 @@ impl TickTracker {
             // `earliest ≤ t_start ≤ t1` ([`place_together`]'s common window).
             let before = t1.saturating_sub(t_start.max(earliest));
             // u = p1 − span · (t1 − t_start) / interval, Q16, inside the count: [p0, p1).
-            // `before` is at most a few intervals (under 2^41), the span under 2^17: the
+            // `before` is at most nine intervals (a span of 1.8 counts over one of 0.2), under
+            // 2^44, the span under 2^17: the
             // product fits; `checked_div` keeps panics out.
             let Some(frac) = (before * span as u64).checked_div(interval) else {
                 return;
@@ -335,7 +361,8 @@ impl TickTracker {
     }
 
     /// Where inside its count the wheel stood at power-on, as far as its ticks tell: Q16
-    /// counts in `[0, 1]` (half a count until they tell).
+    /// counts in `[0, 1]` (half a count until they tell; on learned uneven edges, between the
+    /// count's own edges).
     pub fn phase_q16(&self) -> i64 {
         self.phase_q16
     }
@@ -608,12 +635,13 @@ mod tests {
     }
 
     /// Where a wheel's start from rest at power-on is placed, against where it stood: a start
-    /// at constant acceleration (5000 counts/s² up to 1000 counts/s), on an encoder whose
-    /// edges sit off by a HEDS-9040's typical state widths and each code-wheel line up to
-    /// ±1/60 count off, at 24 power-on places. Returns the errors (counts) after 300 ticks,
-    /// with an update after each, and those of the fit through the first four ticks on the
-    /// same learned places.
-    fn start_errors_from_rest() -> (Vec<f64>, Vec<f64>) {
+    /// at constant acceleration (5000 counts/s² up to 1000 counts/s) in direction `dir`,
+    /// `pause` seconds at a standstill after its fifth tick, on an encoder whose edges sit off
+    /// by a HEDS-9040's typical state widths and each code-wheel line up to ±1/60 count off,
+    /// at 24 power-on places. Returns the errors (counts) after 300 ticks, with an update
+    /// after each, and those of the fit through the first four ticks on the same learned
+    /// places; and whether every wheel's own fit placed it.
+    fn start_errors_from_rest(dir: i8, pause: f64) -> (Vec<f64>, Vec<f64>, bool) {
         let kinds = [0.0267, -0.0289, -0.0175, 0.0196];
         let mut seed = 7u64;
         let mut unit = move || {
@@ -622,12 +650,23 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64
         };
-        let (mut spread, mut first_four) = (Vec::new(), Vec::new());
+        let (mut spread, mut first_four, mut placed) = (Vec::new(), Vec::new(), true);
         for _ in 0..24 {
             let (phi, q) = (0.05 + 0.9 * unit(), (unit() * 4.0) as i64);
-            let lines: Vec<f64> = (0..100).map(|_| (unit() - 0.5) / 30.0).collect();
-            let place =
-                |m: i64| m as f64 + kinds[((m + q) & 3) as usize] + lines[((m + q) >> 2) as usize];
+            let lines: Vec<f64> = (0..200).map(|_| (unit() - 0.5) / 30.0).collect();
+            // Edge e's place, counts; the k-th tick (from 1) crosses edge k forward, 1 − k
+            // backward, after this much travel.
+            let place = |e: i64| {
+                let line = lines[((e + q).div_euclid(4) + 100) as usize];
+                e as f64 + kinds[(e + q).rem_euclid(4) as usize] + line
+            };
+            let travel = |k: i64| {
+                if dir > 0 {
+                    place(k) - phi
+                } else {
+                    phi - place(1 - k)
+                }
+            };
             // s(t) = A t² to the top speed at 0.1 s (25 counts), then 1000 counts/s.
             let at = |s: f64| {
                 if s < 25.0 {
@@ -638,33 +677,77 @@ mod tests {
             };
             let mut w = TickTracker::starting(0, 0);
             let mut times = Vec::new();
-            for m in 1..=300 {
-                let t = (at(place(m) - phi) * 1e9) as u64;
+            for k in 1..=300 {
+                let stood = if k > 5 { pause } else { 0.0 };
+                let t = ((at(travel(k)) + stood) * 1e9) as u64;
                 times.push(t);
-                w.tick(t, 1);
+                w.tick(t, dir);
                 w.learn();
             }
+            placed &= w.placed;
             let got = w.phase_q16() as f64 / 65536.0;
             spread.push((got - phi).abs());
             let places = [0, 1, 2, 3].map(|k| w.first_place_q16(k) << 8);
-            let four = start::start_position_on_q16(0, &times[..4], &places).unwrap_or(1 << 15);
+            let u = start::start_position_on_q16(0, &times[..4], &places).unwrap_or(1 << 15);
+            let four = if dir > 0 { u } else { (1 << 16) - u };
             first_four.push((four as f64 / 65536.0 - phi).abs());
         }
         spread.sort_by(f64::total_cmp);
         first_four.sort_by(f64::total_cmp);
-        (spread, first_four)
+        (spread, first_four, placed)
     }
 
     #[test]
     fn a_start_from_rest_is_fitted_again_through_spread_ticks() {
-        let (spread, first_four) = start_errors_from_rest();
-        let (median, worst) = (spread[12], spread[23]);
-        // Each line's placement, magnified by the cubic's extrapolation back to rest.
-        assert!(median < 0.05 && worst < 0.2, "{spread:?}");
+        for dir in [1, -1] {
+            let (spread, first_four, placed) = start_errors_from_rest(dir, 0.0);
+            let (median, worst) = (spread[12], spread[23]);
+            // Each line's placement, magnified by the cubic's extrapolation back to rest.
+            assert!(placed && median < 0.05 && worst < 0.2, "{dir}: {spread:?}");
+            assert!(
+                median < first_four[12] && worst < first_four[23],
+                "{dir}: {spread:?} {first_four:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_pause_after_the_fifth_tick_keeps_the_fit_off_the_ninth() {
+        // Standing 0.2 s after the fifth tick: the ninth says nothing of the start's curve.
+        let (spread, _, placed) = start_errors_from_rest(1, 0.2);
         assert!(
-            median < first_four[12] && worst < first_four[23],
-            "{spread:?} {first_four:?}"
+            placed && spread[12] < 0.05 && spread[23] < 0.25,
+            "{placed} {spread:?}"
         );
+    }
+
+    #[test]
+    fn edges_learned_even_leave_a_joint_placement_on_whole_counts() {
+        // The abrupt start of `wheels_that_start_abruptly_after_a_rest_are_placed_together`,
+        // each wheel's learner holding offsets under `UNEVEN_Q16` (what windows learn of even
+        // edges: their time stamps' rounding): placed exactly as with nothing learned.
+        let start = 1_000_000_000u64;
+        let ticks = |phi: f64, per_s: f64| -> [u64; 6] {
+            core::array::from_fn(|k| start + ((k as f64 + 1.0 - phi) / per_s * 1e9) as u64)
+        };
+        let place = |offsets: [i32; 4]| {
+            let mut wheels = [TickTracker::starting(0, 0), TickTracker::starting(0, 0)];
+            for w in &mut wheels {
+                w.learner = Learner::with_offsets_q16(offsets);
+            }
+            let mut all: Vec<(u64, usize)> = (0..2)
+                .flat_map(|j| {
+                    let (phi, v) = [(0.35, 1000.0), (0.8, 600.0)][j];
+                    ticks(phi, v).map(|t| (t, j))
+                })
+                .collect();
+            all.sort();
+            for (t, j) in all {
+                tick_wheel(&mut wheels, j, t, 1);
+            }
+            wheels.map(|w| w.phase_q16())
+        };
+        assert_eq!(place([300, -200, 100, -300]), place([0; 4]));
     }
 
     #[test]
@@ -710,11 +793,13 @@ pub fn learn_edges(wheels: &mut [TickTracker]) {
 
 /// Wheels that their own first ticks could not place started moving together: after a rest
 /// the body starts as one, so an abrupt start (whose instant no single wheel can tell) must lie
-/// in every such wheel's window `[t1 − first interval, t1]`. Each is placed as if it started
-/// in the middle of their common window; a wheel's error is then at most half the window at
-/// its own speed, under half a count, and the fastest wheel narrows the window for all.
-/// Called by [`tick_wheel`] after a tick of a wheel that was
-/// [`placing`](TickTracker::placing) before it: no other tick changes a window. Integer-only.
+/// in every such wheel's window ([`TickTracker::start_window`]: `[t1 − first interval, t1]` on
+/// even edges, the span from the count's other edge on learned uneven ones). Each is placed as
+/// if it started in the middle of their common window; a wheel's error is then at most half
+/// the window at its own speed (under half a count on even edges), and the fastest wheel
+/// narrows the window for all. Called by [`tick_wheel`] after a tick of a wheel that was
+/// [`placing`](TickTracker::placing) before it, and by [`learn_edges`] once a wheel's start
+/// was fitted again on learned edges: no other tick changes a window. Integer-only.
 // Cold and out of line: it runs for a wheel's first few ticks only, and inlined its frame
 // would be set up on every edge.
 #[cold]

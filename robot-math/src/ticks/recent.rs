@@ -13,8 +13,9 @@
 //! would have left, and a bounded amount of work per wheel per update however fast the wheel
 //! turns.
 //!
-//! Only for a wheel whose first ticks have placed it ([`TickTracker::placing`] false): while
-//! they are gathered every tick feeds the start fit, which needs each one.
+//! Only for a wheel that has gathered its first ticks one way ([`TickTracker::placing`] false:
+//! nine, or fewer and a reversal): while they are gathered every tick feeds the start fit,
+//! which needs each one.
 
 use super::TickTracker;
 use super::WINDOW;

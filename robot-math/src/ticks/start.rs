@@ -27,7 +27,8 @@
 //! kilobytes): times are normalised to `x = (t − t1) / (t_n − t1)` in Q24 and the fit is
 //! Newton's divided differences; first ticks more uneven than 1 : 256 of their span, or a fit
 //! whose numbers leave 64 bits, are refused (no motion worth extrapolating looks like that).
-//! The speed's zeros need one integer square root. It runs for the first four ticks only.
+//! The speed's zeros need one integer square root. It runs for the first four ticks, and once
+//! more on learned uneven edges (the 1st, 2nd, 5th and 9th ticks: `TickTracker::learn`).
 
 /// Fraction bits of the fit's numbers.
 const Q: u32 = 24;
