@@ -164,6 +164,65 @@ mod tests {
     }
 
     proptest! {
+        /// Three wheels at once, as the estimator runs them: each tick through `tick_wheel`
+        /// while its wheel gathers its first ticks (which may place the others together), else
+        /// kept; at each update the kept ticks caught up and `learn_edges` (which may fit a
+        /// start again and place the wheels together again). Abrupt starts after a rest at
+        /// random speeds on uneven edges, so the starts are placed together again on learned
+        /// edges: equal, bit for bit, to the wheels that saw every tick.
+        #[test]
+        fn wheels_caught_up_equal_wheels_ticked_every_tick(
+            wheels in proptest::collection::vec(
+                (300.0f64..3_000.0, 0.05f64..0.95, proptest::array::uniform4(0.03f64..0.06)),
+                3,
+            ),
+            updates in proptest::collection::vec(proptest::bool::weighted(0.3), 600),
+        ) {
+            let start = 1_000_000_000u64;
+            let mut ticks: Vec<(u64, usize)> = wheels
+                .iter()
+                .enumerate()
+                .flat_map(|(j, &(per_s, phi, off))| {
+                    (1..=200i64).map(move |m| {
+                        // Alternate signs: every encoder's edges measurably uneven.
+                        let sign = if m & 1 == 0 { 1.0 } else { -1.0 };
+                        let place = m as f64 + sign * off[(m & 3) as usize];
+                        (start + ((place - phi) / per_s * 1e9) as u64, j)
+                    })
+                })
+                .collect();
+            ticks.sort();
+            let mut every = [TickTracker::starting(0, 0); 3];
+            let mut deferred = every;
+            let mut recent = [RecentTicks::default(); 3];
+            let mut counts = [0i64; 3];
+            let last = ticks.len() - 1;
+            for (i, (&(t, j), update_here)) in ticks.iter().zip(updates.iter().cycle()).enumerate() {
+                counts[j] += 1;
+                super::super::tick_wheel(&mut every, j, t, 1);
+                if deferred[j].placing() {
+                    super::super::tick_wheel(&mut deferred, j, t, 1);
+                } else {
+                    recent[j].push(t, 1);
+                }
+                if *update_here || i == last {
+                    for ((w, r), &c) in deferred.iter_mut().zip(&mut recent).zip(&counts) {
+                        if r.any() {
+                            w.catch_up(c, r);
+                        }
+                    }
+                    super::super::learn_edges(&mut deferred);
+                    super::super::learn_edges(&mut every);
+                    prop_assert_eq!(deferred, every);
+                }
+            }
+            prop_assert!(every.iter().all(|w| w.edges().uneven()), "not learned uneven");
+            // An abrupt start: no wheel's own fit places it, they were placed together.
+            prop_assert!(every.iter().all(|w| !w.placed), "placed by its own fit");
+        }
+    }
+
+    proptest! {
         /// The same with the edges learned: runs one way at a near-constant speed (so windows
         /// are measured and the start is fitted again), reversals, updates at random; the
         /// deferred tracker must equal the one that saw every tick, and it must have learned.
