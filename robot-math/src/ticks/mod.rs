@@ -253,7 +253,7 @@ impl TickTracker {
     #[inline(never)]
     fn place_on_learned_edges(&mut self) -> bool {
         let times = &self.first[..(self.gathered as usize).min(PLACING_TICKS)];
-        let places = self.fit_ticks().map(|k| self.first_place_q16(k) << 8);
+        let places = self.first_places_q16(self.fit_ticks()).map(|p| p << 8);
         let Some(u) = start::start_position_on_q16(self.start_ns, times, &places) else {
             return false;
         };
@@ -277,12 +277,13 @@ impl TickTracker {
         }
     }
 
-    /// Where the first direction's `k`-th tick's edge lies (k = 0: the first tick's, −1: the
-    /// count's other edge), Q16 counts along that direction from the count's first edge's
-    /// whole-count place (c0 forward, c0 + 1 backward): `k + 1`, moved by the edge's learned
-    /// offset. Out of line: the start's fits call it for a wheel's first ticks only.
+    /// Where the first direction's `k`-th ticks' edges lie, for each `k` of `ticks` (0: the
+    /// first tick's, −1: the count's other edge), Q16 counts along that direction from the
+    /// count's first edge's whole-count place (c0 forward, c0 + 1 backward): `k + 1`, moved by
+    /// the edge's learned offset. Out of line: the start's fits call it for a wheel's first
+    /// ticks only.
     #[inline(never)]
-    fn first_place_q16(&self, k: i64) -> i64 {
+    fn first_places_q16(&self, ticks: [i64; 4]) -> [i64; 4] {
         let d = self.first_dir as i64;
         let first = if d > 0 {
             self.start_count + 1
@@ -291,12 +292,15 @@ impl TickTracker {
         };
         // Edges not found uneven are whole counts here, as before anything was learned: what a
         // window learns of even edges is its time stamps' rounding.
-        let offset = if self.learner.table().uneven() {
-            self.learner.offset_q16(first + d * k)
-        } else {
-            0
-        };
-        ((k + 1) << 16) + d * offset
+        let uneven = self.learner.table().uneven();
+        ticks.map(|k| {
+            let offset = if uneven {
+                self.learner.offset_q16(first + d * k)
+            } else {
+                0
+            };
+            ((k + 1) << 16) + d * offset
+        })
     }
 
     /// The start `u` (Q16, along the first direction from the count's first edge's place) as
@@ -315,14 +319,14 @@ impl TickTracker {
     /// its start to lie inside its count (`before`: the time from the count's other edge to
     /// the first tick's at that speed; the first interval itself on even edges), the first
     /// interval, and the places of that edge and the first tick's and the interval's span
-    /// ([`first_place_q16`](Self::first_place_q16)).
+    /// ([`first_places_q16`](Self::first_places_q16)).
     fn start_window(&self) -> Option<(u64, u64, u64, [i64; 3])> {
         if self.placed || self.first_len < 2 {
             return None;
         }
         let (t1, t2) = (self.first[0], self.first[1]);
         let interval = t2.checked_sub(t1).filter(|&i| i > 0 && i < 1 << 40)?;
-        let [p0, p1, p2] = [-1, 0, 1].map(|k| self.first_place_q16(k));
+        let [p0, p1, p2, _] = self.first_places_q16([-1, 0, 1, 1]);
         // Learned offsets stay within 0.4 count of their places: a span is 0.2 to 1.8 counts
         // (positive, under 2^17), and `interval < 2^40`, so the product fits 64 bits.
         let span = p2 - p1;

@@ -237,7 +237,7 @@ fn start_errors_from_rest(dir: i8, pause: f64) -> (Vec<f64>, Vec<f64>, bool) {
         placed &= w.placed;
         let got = w.phase_q16() as f64 / 65536.0;
         spread.push((got - phi).abs());
-        let places = [0, 1, 2, 3].map(|k| w.first_place_q16(k) << 8);
+        let places = w.first_places_q16([0, 1, 2, 3]).map(|p| p << 8);
         let u = start::start_position_on_q16(0, &times[..4], &places).unwrap_or(1 << 15);
         let four = if dir > 0 { u } else { (1 << 16) - u };
         first_four.push((four as f64 / 65536.0 - phi).abs());
