@@ -390,3 +390,40 @@ mod counts_as_ticks {
         assert_eq!(&order[..n], &[0, 1, 0, 1, 0]);
     }
 }
+
+/// A wheel shaken across an edge at power-on (a motor holding it, a bump, the robot set down)
+/// ticks over that edge and back: it stood by the edge, not anywhere in its count, and is
+/// placed there, for the whole run (half a count off in the middle of its count, where a
+/// wheel's first ticks cannot place it otherwise: a heading error for good on a differential
+/// drive). Both ways.
+#[test]
+fn a_wheel_shaken_across_an_edge_at_power_on_is_placed_on_it() {
+    // (power-on place inside count 0, the first shake's direction)
+    for (p0, dir) in [(0.997f64, 1i8), (0.004, -1)] {
+        let mut w = TickTracker::new();
+        for (k, t_ms) in [1u64, 9, 23, 30].into_iter().enumerate() {
+            w.tick(t_ms * 1_000_000, if k % 2 == 0 { dir } else { -dir });
+        }
+        assert_eq!(w.count(), 0);
+        // Then it drives off that way from rest at 300 ms, 1 000 counts/s²: past 20 edges.
+        let edge_at = |k: f64| 300_000_000 + (((k - p0).abs() / 500.0).sqrt() * 1e9) as u64;
+        let edges: Vec<f64> = if dir > 0 {
+            (1..=20).map(f64::from).collect()
+        } else {
+            (0..20).map(|k| -f64::from(k)).collect()
+        };
+        for &e in &edges {
+            w.tick(edge_at(e), dir);
+        }
+        // Its travel since power-on, plus count 0, at the last edge.
+        let last = *edges.last().unwrap();
+        let truth = (last - p0) * 65536.0;
+        let got = w.position_q16(edge_at(last)) as f64;
+        assert!(
+            (got - truth).abs() < 0.01 * 65536.0,
+            "shaken first {dir:+}: {} counts, truth {}",
+            got / 65536.0,
+            truth / 65536.0
+        );
+    }
+}
