@@ -178,12 +178,13 @@ impl TickTracker {
             // crossed: it stood by that edge, shaken across it (a motor holding the wheel, a
             // bump, a hand setting the robot down), not anywhere in its count. Placed there
             // now (one tick fits nothing, so nothing placed it yet), as no later fit will:
-            // half a count off otherwise, a heading error for the whole run. A wheel that
-            // really went most of a count and back is the rarer case at power-on.
-            // (`ticks::tests::a_wheel_shaken_across_an_edge_at_power_on_is_placed_on_it`.)
+            // half a count off otherwise, a heading error for the whole run; and there again
+            // once its edges are learned. A wheel that really went most of a count and back
+            // is the rarer case at power-on. (`ticks::tests::a_wheel_shaken_across_*`.)
             1 if step != self.first_dir => {
-                self.phase_q16 = if step < 0 { 1 << 16 } else { 0 };
-                false
+                self.first_len = SPAN_TICKS;
+                self.place_on_learned_edges();
+                return;
             }
             // The wheel turned back later: keep what we have.
             _ if n != 0 && step != self.first_dir => false,
@@ -264,7 +265,14 @@ impl TickTracker {
     #[inline(never)]
     fn place_on_learned_edges(&mut self) -> bool {
         let times = &self.first[..(self.gathered as usize).min(PLACING_TICKS)];
-        let places = self.first_places_q16(self.fit_ticks()).map(|p| p << 8);
+        let places = self.first_places_q16(self.fit_ticks());
+        if times.len() == 1 && !self.placing() {
+            // Shaken across its first edge at power-on ([`fit_start`](Self::fit_start)): on
+            // that edge, which no fit places.
+            self.set_start(places[0]);
+            return false;
+        }
+        let places = places.map(|p| p << 8);
         let Some(u) = start::start_position_on_q16(self.start_ns, times, &places) else {
             return false;
         };
