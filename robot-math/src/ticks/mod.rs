@@ -61,9 +61,9 @@ pub struct TickTracker {
     first_dir: i8,
     /// That position, Q16 counts above the count at power-on (φ ∈ [0, 1]; on learned uneven
     /// edges between the count's own edges, which lie up to 0.4 count off); half a count
-    /// until a fit places it.
+    /// until its ticks place it.
     phase_q16: i64,
-    /// A fit of the wheel's own first ticks placed it.
+    /// The wheel's own first ticks placed it: a fit, or shaken across its first edge.
     placed: bool,
     /// How many ticks one way were gathered (up to [`SPAN_TICKS`]).
     gathered: u8,
@@ -259,22 +259,22 @@ impl TickTracker {
     /// The start fit on the first ticks gathered, at their learned edges (whole counts until
     /// some are learned). Fitted again once the edges are known ([`learn`](Self::learn)), a
     /// wheel its own first ticks placed is placed better, and one they could not (an uneven
-    /// edge made them look like an abrupt start) may be placed now. Whether the fit placed it
-    /// (else the wheel keeps what it had).
+    /// edge made them look like an abrupt start) may be placed now; a wheel shaken across its
+    /// first edge at power-on ([`fit_start`](Self::fit_start)) is placed on that edge, which
+    /// no fit places. Whether it placed the wheel (else the wheel keeps what it had).
     #[cold]
     #[inline(never)]
     fn place_on_learned_edges(&mut self) -> bool {
         let times = &self.first[..(self.gathered as usize).min(PLACING_TICKS)];
         let places = self.first_places_q16(self.fit_ticks());
-        if times.len() == 1 && !self.placing() {
-            // Shaken across its first edge at power-on ([`fit_start`](Self::fit_start)): on
-            // that edge, which no fit places.
-            self.set_start(places[0]);
-            return false;
-        }
-        let places = places.map(|p| p << 8);
-        let Some(u) = start::start_position_on_q16(self.start_ns, times, &places) else {
-            return false;
+        let u = if times.len() == 1 && !self.placing() {
+            places[0]
+        } else {
+            let places = places.map(|p| p << 8);
+            let Some(u) = start::start_position_on_q16(self.start_ns, times, &places) else {
+                return false;
+            };
+            u
         };
         self.set_start(u);
         self.placed = true;

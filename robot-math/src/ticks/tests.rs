@@ -429,32 +429,44 @@ fn a_wheel_shaken_across_an_edge_at_power_on_is_placed_on_it() {
 }
 
 /// The same on uneven edges: once they are learned, a wheel shaken across its first edge at
-/// power-on is placed again, on where that edge really is.
+/// power-on is placed again, on where that edge really is. Shaken forward first, then driven
+/// forward; shaken backward first, then driven forward (the other way).
 #[test]
 fn a_wheel_shaken_across_an_edge_at_power_on_is_placed_on_it_once_its_edges_are_learned() {
-    // Offsets of the edges off their whole-count places (counts, by edge mod 4), as wide as a
-    // HEDS-9040's maximum state widths; edge 1, shaken across, an eighth of a count low.
-    let off = [0.025, -0.125, 0.125, -0.025];
-    let p0 = 1.0 + off[1] - 0.01; // just below edge 1 where it really is
-    let mut w = [TickTracker::starting(0, 0)];
-    for (k, t_ms) in [1u64, 5, 9, 12].into_iter().enumerate() {
-        tick_wheel(&mut w, 0, t_ms * 1_000_000, if k % 2 == 0 { 1 } else { -1 });
+    // Offsets of the edges off their whole-count places (counts, by edge mod 4): states 0.775
+    // to 1.25 counts wide, inside a HEDS-9040's maximum (30 °e, a third of a count).
+    let off = [0.1, -0.125, 0.125, -0.1];
+    // (the edge shaken across, where it really is, the power-on place 0.003 count on the
+    // side the first shake leaves from, the first shake's direction)
+    for (edge, dir) in [(1i64, 1i8), (0, -1)] {
+        let at = edge as f64 + off[edge as usize];
+        let p0 = at - 0.003 * dir as f64;
+        let mut w = [TickTracker::starting(0, 0)];
+        for (k, t_ms) in [1u64, 5, 9, 12].into_iter().enumerate() {
+            tick_wheel(
+                &mut w,
+                0,
+                t_ms * 1_000_000,
+                if k % 2 == 0 { dir } else { -dir },
+            );
+        }
+        let whole = if dir > 0 { 1 << 16 } else { 0 };
+        assert_eq!(
+            w[0].phase_q16(),
+            whole,
+            "on the edge's whole-count place first"
+        );
+        // Then forward at full speed at once, 1 000 counts/s from 1 s, an update after every
+        // tick: over edge 1 first (shaken backward, the wheel stands above edge 0).
+        for m in 1..=300i64 {
+            let place = m as f64 + off[(m & 3) as usize];
+            tick_wheel(&mut w, 0, 1_000_000_000 + ((place - p0) * 1e6) as u64, 1);
+            learn_edges(&mut w);
+        }
+        let got = w[0].phase_q16() as f64 / 65536.0;
+        assert!(
+            (got - at).abs() < 0.01,
+            "shaken first {dir:+}: {got} vs edge {edge} at {at}"
+        );
     }
-    assert_eq!(
-        w[0].phase_q16(),
-        1 << 16,
-        "on the edge's whole-count place first"
-    );
-    // Then at full speed at once, 1 000 counts/s from 1 s, an update after every tick.
-    for m in 1..=300i64 {
-        let place = m as f64 + off[(m & 3) as usize];
-        tick_wheel(&mut w, 0, 1_000_000_000 + ((place - p0) * 1e6) as u64, 1);
-        learn_edges(&mut w);
-    }
-    let got = w[0].phase_q16() as f64 / 65536.0;
-    assert!(
-        (got - (1.0 + off[1])).abs() < 0.01,
-        "{got} vs edge 1 at {}",
-        1.0 + off[1]
-    );
 }
