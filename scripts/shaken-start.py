@@ -23,6 +23,8 @@ import random
 STEP = 0.0004  # metres a count
 REST, ACCEL, CRUISE, SPEED = 0.3, 0.4, 0.6, 0.25  # s, s, s, m/s
 SHAKE, SHAKE_HZ = 0.006, 47.0  # counts, Hz
+# The shake ends with a whole cycle before the start, where it passes through zero.
+SHAKE_END = math.floor(REST * SHAKE_HZ) / SHAKE_HZ
 
 
 def body(t):
@@ -44,7 +46,7 @@ def stream(shaken, seed):
 
     def wheel(i, t):
         shake = SHAKE * math.sin(2 * math.pi * SHAKE_HZ * t) if shaken and i == 0 else 0.0
-        return places[i] + (shake if t < REST else 0.0) + body(t) / STEP
+        return places[i] + (shake if t < SHAKE_END else 0.0) + body(t) / STEP
 
     rows = []
     for i in range(2):
@@ -58,7 +60,7 @@ def stream(shaken, seed):
             while k < count:
                 count -= 1
                 rows.append((us * 1000, f"{us * 1000},tick,{i},-1,,,"))
-    for j in range(int(end * 100) + 1):
+    for j in range(round(end * 100) + 1):
         t_ns = j * 10_000_000
         rows.append((t_ns, f"{t_ns},truth,,,{body(j / 100):.9f},0.0,0.0"))
     rows.sort(key=lambda r: r[0])
