@@ -174,19 +174,7 @@ impl TickTracker {
         // the last two: the times stay in order ([`fit_ticks`](Self::fit_ticks)).
         let f = &mut self.first;
         let go_on = match n {
-            // The wheel turned back right after its first tick, over the edge it had just
-            // crossed: it stood by that edge, shaken across it (a motor holding the wheel, a
-            // bump, a hand setting the robot down), not anywhere in its count. Placed there
-            // now (one tick fits nothing, so nothing placed it yet), as no later fit will:
-            // half a count off otherwise, a heading error for the whole run; and there again
-            // once its edges are learned. A wheel that really went most of a count and back
-            // is the rarer case at power-on. (`ticks::tests::a_wheel_shaken_across_*`.)
-            1 if step != self.first_dir => {
-                self.first_len = SPAN_TICKS;
-                self.place_on_learned_edges();
-                return;
-            }
-            // The wheel turned back later: keep what we have.
+            // The wheel turned back: keep what we have (below: right after its first tick).
             _ if n != 0 && step != self.first_dir => false,
             0..PLACING_TICKS => {
                 f[n] = t_ns;
@@ -211,6 +199,17 @@ impl TickTracker {
         };
         if !go_on {
             self.first_len = SPAN_TICKS;
+            if n == 1 {
+                // It turned back right after its first tick, over the edge it had just
+                // crossed: it stood by that edge, shaken across it (a motor holding the wheel,
+                // a bump, a hand setting the robot down), not anywhere in its count. Placed
+                // there now (one tick fits nothing, so nothing placed it yet), as no later fit
+                // will: half a count off otherwise, a heading error for the whole run; and
+                // there again once its edges are learned. A wheel that really went most of a
+                // count and back is the rarer case at power-on.
+                // (`ticks::tests::a_wheel_shaken_across_*`.)
+                self.place_on_learned_edges();
+            }
             return;
         }
         self.first_dir = step;
