@@ -7,7 +7,7 @@ use clap::Args;
 use firmware_slave::played::PlayKind;
 use host_bench::boards::bench_file;
 use host_bench::formats::{robot::Robot, tickstream};
-use host_bench::serial::{link::Link, play, played_stream, record};
+use host_bench::serial::{clock, link::Link, play, played_stream, record};
 use host_bench::viewer::{topics, Outputs, ViewArgs};
 
 /// Where the master's serial link is: --port/--baud, else bench.toml's `[link]`.
@@ -33,6 +33,11 @@ pub struct PortArgs {
     /// (`scripts/board-model play-check` passes 10).
     #[arg(long, value_name = "FACTOR", default_value_t = 1)]
     pub patience: u32,
+    /// Take the host's time from a board model's clock file (the `clock: FILE` line that
+    /// `scripts/board-model serve` prints) instead of the wall clock: every wait, pace and
+    /// duration is then in the modelled boards' own time, whatever speed the model runs at.
+    #[arg(long, value_name = "FILE")]
+    pub clock: Option<PathBuf>,
 }
 
 impl PortArgs {
@@ -70,6 +75,9 @@ impl PortArgs {
         } else {
             port
         };
+        if let Some(file) = &self.clock {
+            clock::use_model_clock(file)?;
+        }
         let link = Link::open(&port, baud)?.with_patience(self.patience);
         // What was done about the adapter's latency timer (ports that have one).
         if let Some(note) = &link.latency_note {
@@ -233,8 +241,15 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             o.baud
         );
         println!(
-            "speed          {:.3} s played in {:.3} s wall ({:.2}x real time)",
-            o.played_seconds, o.wall_seconds, o.played_per_wall_second
+            "speed          {:.3} s played in {:.3} s {} ({:.2}x real time)",
+            o.played_seconds,
+            o.wall_seconds,
+            if clock::is_model() {
+                "on the model's clock"
+            } else {
+                "wall"
+            },
+            o.played_per_wall_second
         );
         match (o.final_error_m, o.max_error_m) {
             (Some(f), Some(m)) => println!(

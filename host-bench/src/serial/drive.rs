@@ -5,7 +5,7 @@
 //! point), steered by the slave's odometry: a robot driven so goes where its odometry says
 //! the path is, which is what UMBmark asks.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Result};
 use protocol::serial::{status, HostToMaster, MasterToHost};
@@ -13,6 +13,7 @@ use robot_math::Pose2;
 
 use super::link::Link;
 use super::record::Mover;
+use crate::serial::clock::Instant;
 use crate::sim::emulator::host::track_point;
 use crate::sim::emulator::reference::{ReferencePath, Sample};
 use crate::sim::trajectory::{AheadOf, Trajectory};

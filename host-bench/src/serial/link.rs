@@ -4,11 +4,13 @@
 
 use std::collections::VecDeque;
 use std::io::{ErrorKind, Read, Write};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use protocol::link::GbnReceiver;
 use protocol::serial::{self, FrameDecoder, HostToMaster, MasterToHost};
+
+use crate::serial::clock::Instant;
 
 mod baud;
 use baud::REVIVE_AFTER;

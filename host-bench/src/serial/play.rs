@@ -9,7 +9,7 @@
 
 use std::cell::RefCell;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
 use firmware_slave::played::PlayKind;
@@ -27,6 +27,7 @@ use super::played_stream::{self, PlayedStream};
 use super::scorer::Scorer;
 use super::session;
 use crate::formats::robot::Robot;
+use crate::serial::clock::Instant;
 use crate::viewer::{topics, View};
 
 /// Host-side event buffer: bytes offered to the link ahead of the master's credit.
@@ -83,6 +84,8 @@ pub struct PlayOutcome {
     /// Event frames the host sent again (go-back-N after a gap or a timeout).
     pub frames_resent: u64,
     pub played_seconds: f64,
+    /// How long the play took on the host's clock: the wall's, or with `--clock` the board
+    /// model's simulated time.
     pub wall_seconds: f64,
     pub played_per_wall_second: f64,
     /// Truth rows in the stream, and those scored (the rest lie past the last update).

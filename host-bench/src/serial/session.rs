@@ -2,7 +2,7 @@
 //! or schema, and saying which), loading a robot into the slave, choosing the odometry method
 //! and the sensor source — each confirmed by what the board then reports, never assumed.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Result};
 use protocol::serial::{BoardInfo, DriveGeometry, HostToMaster, MasterToHost, RejectReason};
@@ -11,6 +11,7 @@ use protocol::PROTOCOL_VERSION;
 use robot_math::odometry::{Layout, Method};
 
 use super::link::Link;
+use crate::serial::clock::{self, Instant};
 
 /// How long the board may take to answer the handshake or apply a setting.
 const ANSWER_TIMEOUT: Duration = Duration::from_secs(3);
@@ -123,7 +124,7 @@ fn send_until(
         }
         let resend_at = Instant::now() + link.wait(RESEND_AFTER);
         loop {
-            std::thread::sleep(Duration::from_millis(20));
+            clock::sleep(Duration::from_millis(20));
             let info = info(link)?;
             if done(&info) {
                 return Ok(info);

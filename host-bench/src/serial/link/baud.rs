@@ -3,7 +3,7 @@
 //! not come, both go back: the host at once, the master once its trial runs out
 //! ([`BAUD_TRIAL_MS`]), and the session goes on at the power-on rate, saying so.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use protocol::serial::{
@@ -11,6 +11,7 @@ use protocol::serial::{
 };
 
 use super::{Link, POWER_ON_BAUD};
+use crate::serial::clock::{self, Instant};
 
 /// How long the host waits for the master's answer at the new rate.
 const PROOF_WAIT: Duration = Duration::from_millis(250);
@@ -50,7 +51,7 @@ impl Link {
         // Back to the power-on rate; the master goes there once its trial ran out.
         self.set_port_baud(POWER_ON_BAUD)?;
         let trial_over = started + self.wait(Duration::from_millis(BAUD_TRIAL_MS as u64 + 100));
-        std::thread::sleep(trial_over.saturating_duration_since(Instant::now()));
+        clock::sleep(trial_over.saturating_duration_since(Instant::now()));
         if !self.proven(POWER_ON_BAUD)? {
             bail!(
                 "the switch to {target} baud failed and the master did not answer at \
@@ -108,7 +109,7 @@ impl Link {
     pub(super) fn revive(&mut self) -> Result<()> {
         let target = self.baud;
         let back_by = self.last_sent + Duration::from_millis(BAUD_SILENCE_MS as u64 + 200);
-        std::thread::sleep(back_by.saturating_duration_since(Instant::now()));
+        clock::sleep(back_by.saturating_duration_since(Instant::now()));
         self.set_port_baud(POWER_ON_BAUD)?;
         if !self.proven(POWER_ON_BAUD)? {
             // Still at the switched rate after all (a master with another timeout).
@@ -135,7 +136,7 @@ impl Link {
 
     fn set_port_baud(&mut self, baud: u32) -> Result<()> {
         // What is on its way at the old rate is garbage at the new one.
-        std::thread::sleep(Duration::from_millis(2));
+        clock::sleep(Duration::from_millis(2));
         self.port
             .set_baud_rate(baud)
             .with_context(|| format!("setting {} to {baud} baud", self.name))?;

@@ -9,13 +9,15 @@
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use protocol::events::EventDecoder;
 use protocol::serial::{status as serial_status, MasterToHost};
 use protocol::spi::{Reports, SensorSource};
 use serde::Serialize;
+
+use crate::serial::clock::Instant;
 
 mod collect;
 mod show;
