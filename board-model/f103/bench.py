@@ -338,13 +338,15 @@ def _add_reset_args(p):
 
 def cmd_serve(args):
     """The master's USART1 on a pseudo-terminal, in real time (imitates `host-bench
-    virtual-board`: the first line is `port: /dev/pts/N`)."""
+    virtual-board`: the first line is `port: /dev/pts/N`), and the second `clock: FILE`, the
+    model's simulated time for the host to time its waits by (`host-bench play --clock FILE`)."""
     boards = ("master",) if args.no_slave else ("slave", "master")
     bench = _bench_for(args, boards)
     drivers = _drive(bench, args)
     _schedule_resets(bench, args)
     link = PtyLink(bench.boards["master"].usart1, args.max_baud)
     print(f"port: {link.port}", flush=True)
+    print(f"clock: {link.clock.path}", flush=True)
     print(
         f"board model serving ({'+'.join(boards)}, USART1 at the baud the firmware sets); "
         "Ctrl-C ends it",
@@ -361,6 +363,7 @@ def cmd_serve(args):
         lambda: _tell_halts(bench),
     )
     _summary(bench, bench.now, wall, link)
+    link.close()
     ok = _boards_end(bench, wall)
     for d in drivers:
         s = bench.boards["slave"]
@@ -403,11 +406,14 @@ def cmd_play_check(args):
         args.ticks,
         "--sensor",
         args.sensor,
-        # The model runs at a fraction of real time: play's wall-clock waits for the board
-        # (its resends, its stall check) would otherwise see a board that stopped answering.
-        "--patience",
-        str(args.patience),
-    ] + args.play_args
+        # The model runs at a fraction of real time: play times its waits for the boards (its
+        # resends, its stall check, its pace on the line) by the model's clock, not the wall's.
+        "--clock",
+        link.clock.path,
+    ]
+    if args.patience > 1:
+        cmd += ["--patience", str(args.patience)]
+    cmd += args.play_args
     print("board model: " + " ".join(cmd), file=sys.stderr, flush=True)
     host = subprocess.Popen(cmd)
     stop = _stop_flag()
@@ -495,8 +501,9 @@ def main(argv=None, on_bench=None):
     pc.add_argument(
         "--patience",
         type=int,
-        default=10,
-        help="play's --patience: how many times longer it waits for the boards (default 10)",
+        default=1,
+        help="play's --patience: how many times longer it waits for the boards, on top of "
+        "its clock being the model's (default 1)",
     )
     pc.add_argument("play_args", nargs="*", help="more of play's options, after --")
     _add_reset_args(pc)

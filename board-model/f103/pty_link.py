@@ -1,5 +1,7 @@
 """The master's USART1 on a pseudo-terminal, paced to the wall clock: what `serve` and
-`play-check` put between the model and a host program (`host-bench play`/`record`).
+`play-check` put between the model and a host program (`host-bench play`/`record`), with the
+model's simulated time in a clock file beside it (clock_file.py) for the host to time its
+waits by (`--clock`).
 
 Each step of simulated time: the bytes the host wrote to the pty since the last step go to
 USART1's receive line (they then arrive at the line rate, in simulated time), the model runs
@@ -30,6 +32,7 @@ import threading
 import time
 import tty
 
+from .clock_file import ClockFile
 from .core import Chip
 
 
@@ -76,6 +79,8 @@ class PtyLink:
         self.host_rate = None  # read back from the pty at each step (`pull`)
         # judged as each byte leaves the shift register, at the rate the USART sent it
         usart.tx_sink = self._sent
+        # the simulated time, for a host that takes it as its clock (`--clock`)
+        self.clock = ClockFile()
 
     def _watch_hangups(self):
         """Count the host's hang-ups: POLLHUP on the master side while no process has the
@@ -154,6 +159,7 @@ class PtyLink:
 
     def close(self):
         self._closed = True
+        self.clock.close()
         try:
             os.close(self.master_fd)
         except OSError:
@@ -166,10 +172,12 @@ def run_paced(bench, link, step_ticks, done, on_step=None):
     t0 = time.perf_counter()
     start = bench.now
     lag_reported = 0.0
+    link.clock.set(int(bench.now) * 10**9 // Chip.TICK_HZ)
     while not done():
         link.pull()
         bench.run(step_ticks, stop_on_halt=False)
         link.push()
+        link.clock.set(int(bench.now) * 10**9 // Chip.TICK_HZ)
         ahead = (bench.now - start) / Chip.TICK_HZ - (time.perf_counter() - t0)
         if ahead > 0:
             time.sleep(ahead)

@@ -29,8 +29,9 @@ from support import (  # noqa: E402
 
 # from 0.5 s of simulated time: 400 counts forward on the left, 200 backwards on the right
 # The edges start 1.5 s of simulated time after power-on: the recording must be under way by
-# then (the host's start, hello and switch to reporting take a few hundred ms of wall time,
-# and the model idles at about 1x). At 0.5 s, one clean CI run of five missed the first 36.
+# then (the host's start, hello and switch to reporting take a few hundred ms, while the model
+# runs on). At 0.5 s, one clean CI run of five missed the first 36. The recording's 3 s are on
+# the model's clock (`--clock`), so they cover the drive at whatever speed the model runs.
 DRIVE = ["PA0,PA1,1.5,400,4000", "PA8,PA9,1.5,200,2000,rev"]
 
 
@@ -71,6 +72,7 @@ class TestRecord(unittest.TestCase):
             serve = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True)
             try:
                 port = serve.stdout.readline().split("port: ")[1].strip()
+                clock = serve.stdout.readline().split("clock: ")[1].strip()
                 out = os.path.join(d, "rec.csv")
                 r = subprocess.run(
                     [
@@ -78,12 +80,12 @@ class TestRecord(unittest.TestCase):
                         "record",
                         "--port",
                         port,
-                        "--patience",
-                        "10",
+                        "--clock",
+                        clock,
                         "--out",
                         out,
                         "--duration",
-                        "6",
+                        "3",
                     ],
                     capture_output=True,
                     text=True,
@@ -94,8 +96,10 @@ class TestRecord(unittest.TestCase):
             finally:
                 serve.send_signal(signal.SIGTERM)
                 serve.wait(timeout=30)
+                serve.stdout.close()
             err.seek(0)
             log = err.read()
+            err.close()
         m = re.search(r"edges applied (\d+) of (\d+); slave TIM2 CNT (\d+), TIM1 CNT (\d+)", log)
         self.assertIsNotNone(m, log)
         self.assertEqual(

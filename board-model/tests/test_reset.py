@@ -78,9 +78,9 @@ class TestPlayThroughSlaveReset(unittest.TestCase):
     def tearDownClass(cls):
         cls.dir.cleanup()
 
-    def play(self, port):
+    def play(self, port, clock):
         return subprocess.run(
-            [HOST_BENCH, "play", "--port", port, "--patience", "10", "--ticks", self.ticks],
+            [HOST_BENCH, "play", "--port", port, "--clock", clock, "--ticks", self.ticks],
             capture_output=True,
             text=True,
             timeout=90,
@@ -100,8 +100,9 @@ class TestPlayThroughSlaveReset(unittest.TestCase):
         )
         try:
             port = serve.stdout.readline().strip().removeprefix("port: ")
-            first = self.play(port)
-            second = self.play(port)
+            clock = serve.stdout.readline().strip().removeprefix("clock: ")
+            first = self.play(port, clock)
+            second = self.play(port, clock)
         finally:
             serve.send_signal(signal.SIGTERM)
             _, err = serve.communicate(timeout=30)
