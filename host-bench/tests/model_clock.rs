@@ -2,15 +2,19 @@
 //! wall clock (host-bench/src/serial/clock.rs; the chip model writes the file,
 //! board-model/f103/clock_file.py). Here a thread of the test stands in for the model's clock.
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Command, Output};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use host_bench::serial::clock::clock_file_bytes;
+use host_bench::sim::virtual_board;
 use serialport::SerialPort;
+
+#[path = "common/board.rs"]
+mod board;
+use board::Board;
 
 const BIN: &str = env!("CARGO_BIN_EXE_host-bench");
 
@@ -79,35 +83,29 @@ impl Drop for FakeModelClock {
     }
 }
 
+/// `host-bench play --port PORT --clock CLOCK --ticks TICKS` and `more` options.
+fn play(port: &str, clock: &Path, ticks: &Path, more: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(["play", "--port", port, "--clock"])
+        .arg(clock)
+        .arg("--ticks")
+        .arg(ticks)
+        .args(more)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn play_takes_its_time_from_the_clock_file() {
     let dir = tempfile::tempdir().unwrap();
     let ticks = line_stream(dir.path());
-    let mut board = Command::new(BIN)
-        .arg("virtual-board")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    BufReader::new(board.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    let port = first.trim().strip_prefix("port: ").unwrap().to_string();
+    let board = Board::start(virtual_board::Options::default());
     // A model at half of real time (the virtual board itself runs at real time: the play only
     // looks twice as fast to the host).
     let clock = FakeModelClock::start(dir.path(), 0.5);
     let wall = Instant::now();
-    let out = Command::new(BIN)
-        .args(["play", "--port", &port, "--json", "--clock"])
-        .arg(&clock.path)
-        .arg("--ticks")
-        .arg(&ticks)
-        .output()
-        .unwrap();
+    let out = play(&board.port, &clock.path, &ticks, &["--json"]);
     let wall = wall.elapsed().as_secs_f64();
-    let _ = board.kill();
-    let _ = board.wait();
     assert!(
         out.status.success(),
         "{}",
@@ -134,13 +132,7 @@ fn a_stopped_clock_ends_the_wait_for_an_answer_instead_of_hanging() {
     let clock = dir.path().join("clock");
     std::fs::write(&clock, clock_file_bytes(42_000_000)).unwrap();
     let wall = Instant::now();
-    let out = Command::new(BIN)
-        .args(["play", "--port", &port, "--clock"])
-        .arg(&clock)
-        .arg("--ticks")
-        .arg(&ticks)
-        .output()
-        .unwrap();
+    let out = play(&port, &clock, &ticks, &[]);
     let wall = wall.elapsed();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{err}");
@@ -156,19 +148,8 @@ fn a_stopped_clock_ends_the_wait_for_an_answer_instead_of_hanging() {
 fn a_file_that_is_not_a_clock_is_refused_naming_it() {
     let dir = tempfile::tempdir().unwrap();
     let ticks = line_stream(dir.path());
-    let not_a_clock = data("seed001.toml");
-    let out = Command::new(BIN)
-        .args([
-            "play",
-            "--port",
-            "/dev/null",
-            "--clock",
-            &not_a_clock,
-            "--ticks",
-        ])
-        .arg(&ticks)
-        .output()
-        .unwrap();
+    let not_a_clock = PathBuf::from(data("seed001.toml"));
+    let out = play("/dev/null", &not_a_clock, &ticks, &[]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
