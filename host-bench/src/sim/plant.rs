@@ -275,6 +275,19 @@ impl Plant {
         }
     }
 
+    /// [`advance`](Self::advance) from `from_us` to `to_us` microseconds of the firmware's
+    /// clock, the plant's clock then set to `to_us` itself: steps added up drift off whole
+    /// microseconds (by half of one after 78 min of 1 ms steps, when `scripts/long-run` ran a
+    /// build with debug assertions on), and every firmware read must find the plant at its own
+    /// instant (`emulator::hw`). The steps are the same as `advance`'s.
+    pub fn advance_us(&mut self, from_us: u64, to_us: u64, max_step: f64) {
+        if to_us <= from_us {
+            return;
+        }
+        self.advance((to_us - from_us) as f64 * 1e-6, max_step);
+        self.t = to_us as f64 * 1e-6;
+    }
+
     fn step(&mut self, h: f64) {
         if self.held_still() {
             self.step_at_rest(h);

@@ -407,7 +407,7 @@ pub fn serve(
             }
             plant
                 .borrow_mut()
-                .advance((next - now).as_micros() as f64 * 1e-6, 100e-6);
+                .advance_us(now.as_micros(), next.as_micros(), 100e-6);
             sim.run_until(next);
         }
         // The rate the host set on its end of the line, and the master's.

@@ -247,7 +247,9 @@ pub fn run_logged(
         let step = grid.as_ticks();
         let next = Instant::from_ticks((now.as_ticks() / step + 1) * step).min(end);
         let dt = (next - now).as_micros() as f64 * 1e-6;
-        plant.borrow_mut().advance(dt, dt);
+        plant
+            .borrow_mut()
+            .advance_us(now.as_micros(), next.as_micros(), dt);
         sim.run_until(next);
 
         // Score the slave at every update, at the very instant it sampled its sensors, once
