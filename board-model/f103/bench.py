@@ -355,15 +355,17 @@ def cmd_serve(args):
     )
     stop = _stop_flag()
     end = int(args.ms * 1e-3 * Chip.TICK_HZ) if args.ms else None
-    wall = run_paced(
-        bench,
-        link,
-        int(args.step_ms * 1e-3 * Chip.TICK_HZ),
-        lambda: stop or (end is not None and bench.now >= end),
-        lambda: _tell_halts(bench),
-    )
-    _summary(bench, bench.now, wall, link)
-    link.close()
+    try:
+        wall = run_paced(
+            bench,
+            link,
+            int(args.step_ms * 1e-3 * Chip.TICK_HZ),
+            lambda: stop or (end is not None and bench.now >= end),
+            lambda: _tell_halts(bench),
+        )
+        _summary(bench, bench.now, wall, link)
+    finally:
+        link.close()  # the pty, and the clock file with its folder
     ok = _boards_end(bench, wall)
     for d in drivers:
         s = bench.boards["slave"]

@@ -9,8 +9,8 @@ the step, the bytes USART1 sent go to the pty; then the loop sleeps while the mo
 the wall clock (never when it is behind: it cannot catch up, it says so every 10 s).
 
 A host that closes the port leaves behind what it wrote and the line has not carried yet: the
-model, slower than real time, takes the host's wall-clock resends at the line rate of its own
-slower clock, so a `play` leaves up to a second of line time queued (9 kB measured at 0.18x),
+model, slower than real time, takes a wall-clock host's resends (one without `--clock`) at the
+line rate of its own slower clock, so a `play` leaves up to a second of line time queued (9 kB measured at 0.18x),
 where a board at speed would have carried it long before another host opened the port. Those
 bytes would reach the master in the next host's session and hold its handshake back past the
 host's 3 s (wall) answer timeout, so they are dropped when the host hangs up (said on stderr).
@@ -176,8 +176,9 @@ def run_paced(bench, link, step_ticks, done, on_step=None):
     while not done():
         link.pull()
         bench.run(step_ticks, stop_on_halt=False)
-        link.push()
+        # the time first, then the bytes: a host never reads a reply before its clock is there
         link.clock.set(int(bench.now) * 10**9 // Chip.TICK_HZ)
+        link.push()
         ahead = (bench.now - start) / Chip.TICK_HZ - (time.perf_counter() - t0)
         if ahead > 0:
             time.sleep(ahead)

@@ -29,8 +29,8 @@ pub struct PortArgs {
     pub bench: Option<PathBuf>,
     /// Wait this many times longer for the board (1 to 100): the handshake's and each
     /// setting's 3 s, play's 5 s without progress, the 50 ms before unacknowledged events are
-    /// sent again. For a board slower than real time, such as the chip model
-    /// (`scripts/board-model play-check` passes 10).
+    /// sent again. For a board slower than real time that has no clock to give (the chip model
+    /// has: `--clock`).
     #[arg(long, value_name = "FACTOR", default_value_t = 1)]
     pub patience: u32,
     /// Take the host's time from a board model's clock file (the `clock: FILE` line that
@@ -241,7 +241,7 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             o.baud
         );
         println!(
-            "speed          {:.3} s played in {:.3} s {} ({:.2}x real time)",
+            "speed          {:.3} s played in {:.3} s {} ({:.2}x {})",
             o.played_seconds,
             o.wall_seconds,
             if clock::is_model() {
@@ -249,7 +249,12 @@ pub fn run_play(a: PlayArgs) -> Result<()> {
             } else {
                 "wall"
             },
-            o.played_per_wall_second
+            o.played_per_wall_second,
+            if clock::is_model() {
+                "the boards' time"
+            } else {
+                "real time"
+            }
         );
         match (o.final_error_m, o.max_error_m) {
             (Some(f), Some(m)) => println!(

@@ -25,6 +25,7 @@ use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::ops::{Add, AddAssign, Sub};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
 
@@ -99,21 +100,30 @@ pub fn sleep(d: Duration) {
 }
 
 /// From now on take the time from the board model's clock file `path`. Once per process,
-/// before anything reads the time.
+/// before anything reads the time: an instant of the wall's and one of the model's cannot be
+/// compared, so a clock chosen after the wall's was read is refused.
 pub fn use_model_clock(path: &Path) -> Result<()> {
-    if let Some(m) = MODEL.get() {
-        let same = m.lock().unwrap_or_else(|e| e.into_inner()).path == path;
-        if !same {
+    if MODEL.get().is_none() {
+        if WALL_READ.load(Ordering::Relaxed) {
             bail!(
-                "the host already takes its time from another clock file than {}",
+                "the host read the wall clock before it was told to take {}'s: open the \
+                 clock before the link",
                 path.display()
             );
         }
-        return Ok(());
+        let clock = ModelClock::open(path)?;
+        // Another thread may have set one meanwhile: checked below like any earlier one.
+        let _ = MODEL.set(Mutex::new(clock));
     }
-    let clock = ModelClock::open(path)?;
-    // A second caller with the same file between the check and here finds it set: the same.
-    let _ = MODEL.set(Mutex::new(clock));
+    let chosen = MODEL
+        .get()
+        .map(|m| m.lock().unwrap_or_else(|e| e.into_inner()).path.clone());
+    if chosen.as_deref() != Some(path) {
+        bail!(
+            "the host already takes its time from another clock file than {}",
+            path.display()
+        );
+    }
     Ok(())
 }
 
@@ -124,8 +134,12 @@ pub fn is_model() -> bool {
 
 static MODEL: OnceLock<Mutex<ModelClock>> = OnceLock::new();
 
+/// Whether an instant of the wall's was handed out ([`use_model_clock`] then refuses).
+static WALL_READ: AtomicBool = AtomicBool::new(false);
+
 fn wall_epoch() -> std::time::Instant {
     static EPOCH: OnceLock<std::time::Instant> = OnceLock::new();
+    WALL_READ.store(true, Ordering::Relaxed);
     *EPOCH.get_or_init(std::time::Instant::now)
 }
 
@@ -149,6 +163,13 @@ impl ModelClock {
     }
 
     fn open_stopping_after(path: &Path, stopped_after: Duration) -> Result<ModelClock> {
+        // A FIFO or a device would block the reads below: only a file is a clock.
+        if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) && path.exists() {
+            bail!(
+                "{} is not a board model's clock: not a regular file",
+                path.display()
+            );
+        }
         let mut file = File::open(path).with_context(|| {
             format!(
                 "cannot open the clock file {}: pass the path `scripts/board-model serve` \
@@ -197,6 +218,9 @@ impl ModelClock {
                 .read_ns
                 .saturating_add(u64::try_from(on.as_nanos()).unwrap_or(u64::MAX)),
         };
+        // Never back: a model that went on from before a stop leaves the clock where it was
+        // until the model passes it (and a value read wrong, which two reads alike make
+        // unlikely, would hold the clock ahead as long).
         self.given_ns = self.given_ns.max(ns);
         Duration::from_nanos(self.given_ns)
     }
@@ -264,6 +288,12 @@ mod tests {
         path
     }
 
+    fn rewrite_in_place(path: &Path, ns: u64) {
+        use std::os::unix::fs::FileExt;
+        let f = std::fs::OpenOptions::new().write(true).open(path).unwrap();
+        f.write_all_at(&clock_file_bytes(ns), 0).unwrap();
+    }
+
     #[test]
     fn the_time_is_the_models_and_follows_it() {
         let dir = tempfile::tempdir().unwrap();
@@ -271,7 +301,7 @@ mod tests {
         let mut clock = ModelClock::open(&path).unwrap();
         assert_eq!(clock.now(), Duration::from_millis(5));
         // The model rewrites the file in place (its mmap): the host sees each new time.
-        std::fs::write(&path, clock_file_bytes(7_250_000)).unwrap();
+        rewrite_in_place(&path, 7_250_000);
         assert_eq!(clock.now(), Duration::from_micros(7_250));
     }
 
@@ -284,6 +314,8 @@ mod tests {
             assert!(err.contains("is not a board model's clock"), "{err}");
             assert!(err.contains(&path.display().to_string()), "{err}");
         }
+        let not_a_file = ModelClock::open(dir.path()).err().unwrap().to_string();
+        assert!(not_a_file.contains("not a regular file"), "{not_a_file}");
         let missing = dir.path().join("nowhere");
         let err = format!("{:#}", ModelClock::open(&missing).err().unwrap());
         assert!(
@@ -303,7 +335,7 @@ mod tests {
         let on = clock.now() - Duration::from_secs(1);
         assert!(on >= Duration::from_millis(40), "{on:?}");
         // The model goes on from where it stopped: the clock does not go back.
-        std::fs::write(&path, clock_file_bytes(1_000_000_001)).unwrap();
+        rewrite_in_place(&path, 1_000_000_001);
         assert!(clock.now() >= Duration::from_secs(1) + on);
     }
 
