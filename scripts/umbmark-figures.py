@@ -25,11 +25,14 @@ from the noise seed; the "after" figure is the true E_max,syst of the squares dr
 replayed) with the corrected file, measured without noise.
 
 Usage: python3 scripts/umbmark-figures.py [--host-bench PATH] [--seeds 5] [--noise-seeds 5]
-                                          [--goal X]
-With --goal, exits 1 unless every calibration cut E_max,syst at least X times.
+                                          [--goal X] [--jobs N]
+With --goal, exits 1 unless every calibration cut E_max,syst at least X times. The host-bench
+runs go --jobs at a time (default: one per core); each is deterministic, so the figures do not
+depend on it.
 """
 
 import argparse
+import concurrent.futures
 import json
 import os
 import random
@@ -72,19 +75,19 @@ def calibrate(hb, robot, runs, out=None, measured=None):
     return json.loads(run(hb, *args))
 
 
-def seed002(hb, tmp, seeds, noise_seeds):
+def seed002(hb, tmp, seeds, pool):
+    """The squares driven before calibration, then a function of the noise seed that measures
+    them, calibrates and drives them again: (UMBmark's result, E_max,syst after, None)."""
     nominal = os.path.join(ROOT, "robots/seed002.toml")
     truly = os.path.join(ROOT, "robots/seed002-as-built.toml")
     scen = lambda way: os.path.join(ROOT, f"scenarios/umbmark-{way}.toml")
     drive = lambda way, robot, out: run(
         hb, "emulate", "--scenario", scen(way), "--true-robot", truly, "--sweep", str(seeds),
         "--json", *(["--robot", robot] if robot else []), out=out)
-    before = {}
-    for way in ("cw", "ccw"):
-        before[way] = os.path.join(tmp, f"002-{way}.json")
-        drive(way, None, before[way])
-    rows = []
-    for ns in range(noise_seeds):
+    before = {way: os.path.join(tmp, f"002-{way}.json") for way in ("cw", "ccw")}
+    list(pool.map(lambda way: drive(way, None, before[way]), before))
+
+    def chain(ns):
         rng = random.Random(ns)
         runs = []
         for way in ("cw", "ccw"):
@@ -106,8 +109,9 @@ def seed002(hb, tmp, seeds, noise_seeds):
             drive(way, fitted, path)
             again.append(path)
         a = calibrate(hb, fitted, again)
-        rows.append((c["umbmark"], a["umbmark"]["e_max_syst_m"], None))
-    return rows
+        return (c["umbmark"], a["umbmark"]["e_max_syst_m"], None)
+
+    return chain
 
 
 def as_built_seed001(tmp):
@@ -139,8 +143,11 @@ def last_truth(path):
     return float(x), float(y), float(th)
 
 
-def generated(hb, tmp, tag, nominal, truly, seeds, noise_seeds, swivel):
-    streams = []
+def generated(hb, tmp, tag, nominal, truly, seeds, swivel, pool):
+    """The true squares written, then a function of the noise seed that measures their end
+    poses, calibrates both ways and replays them on each corrected file: (UMBmark's result,
+    E_max,syst after it, E_max,syst after the fit)."""
+    jobs = []
     for way in ("cw", "ccw"):
         for s in range(seeds):
             path = os.path.join(tmp, f"{tag}-{way}-{s}.csv")
@@ -148,11 +155,12 @@ def generated(hb, tmp, tag, nominal, truly, seeds, noise_seeds, swivel):
             if swivel:
                 deg = random.Random(f"{tag}-{way}-{s}").uniform(-90.0, 90.0)
                 extra = ["--start-swivel-deg", repr(deg)]
-            run(hb, "generate", "--robot", truly, "--trajectory", f"umbmark-{way}", "--seed",
-                str(s), *extra, "--out", path)
-            streams.append(path)
-    rows = []
-    for ns in range(noise_seeds):
+            jobs.append((path, ["generate", "--robot", truly, "--trajectory", f"umbmark-{way}",
+                                "--seed", str(s), *extra, "--out", path]))
+    list(pool.map(lambda job: run(hb, *job[1]), jobs))
+    streams = [path for path, _ in jobs]
+
+    def chain(ns):
         rng = random.Random(1000 + ns)
         measured = os.path.join(tmp, f"{tag}-measured-{ns}.csv")
         with open(measured, "w") as f:
@@ -168,8 +176,9 @@ def generated(hb, tmp, tag, nominal, truly, seeds, noise_seeds, swivel):
         run(hb, "calibrate", "--method", "fit", "--robot", nominal, "--runs", *streams,
             "--measured", measured, "--out", by_fit)
         f = calibrate(hb, by_fit, streams)
-        rows.append((c["umbmark"], a["umbmark"]["e_max_syst_m"], f["umbmark"]["e_max_syst_m"]))
-    return rows
+        return (c["umbmark"], a["umbmark"]["e_max_syst_m"], f["umbmark"]["e_max_syst_m"])
+
+    return chain
 
 
 def report(name, rows, goal):
@@ -204,20 +213,32 @@ def main():
     ap.add_argument("--seeds", type=int, default=5, help="squares each way (power-on seeds)")
     ap.add_argument("--noise-seeds", type=int, default=5, help="draws of the measuring noise")
     ap.add_argument("--goal", type=float, default=0, help="least cut of E_max,syst, or exit 1")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                    help="host-bench runs at a time (default: one per core)")
     a = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        ok = report(f"seed002 (emulated, steered by its odometry, {a.seeds} squares each way)",
-                    seed002(a.host_bench, tmp, a.seeds, a.noise_seeds), a.goal)
-        ok &= report(f"seed001 (generated true squares, {a.seeds} each way)",
-                     generated(a.host_bench, tmp, "001", os.path.join(ROOT, "robots/seed001.toml"),
-                               as_built_seed001(tmp), a.seeds, a.noise_seeds, False), a.goal)
-        ok &= report(f"seed004 (its carriage's measuring wheels, generated true squares, "
-                     f"{a.seeds} each way)",
-                     generated(a.host_bench, tmp, "004", os.path.join(ROOT, "robots/seed004.toml"),
-                               os.path.join(ROOT, "robots/seed004-as-built.toml"), a.seeds,
-                               a.noise_seeds, True), a.goal)
+    robots = [
+        (f"seed002 (emulated, steered by its odometry, {a.seeds} squares each way)",
+         lambda tmp, pool: seed002(a.host_bench, tmp, a.seeds, pool)),
+        (f"seed001 (generated true squares, {a.seeds} each way)",
+         lambda tmp, pool: generated(a.host_bench, tmp, "001",
+                                     os.path.join(ROOT, "robots/seed001.toml"),
+                                     as_built_seed001(tmp), a.seeds, False, pool)),
+        (f"seed004 (its carriage's measuring wheels, generated true squares, {a.seeds} each way)",
+         lambda tmp, pool: generated(a.host_bench, tmp, "004",
+                                     os.path.join(ROOT, "robots/seed004.toml"),
+                                     os.path.join(ROOT, "robots/seed004-as-built.toml"),
+                                     a.seeds, True, pool)),
+    ]
+    with tempfile.TemporaryDirectory() as tmp, \
+            concurrent.futures.ThreadPoolExecutor(max(1, a.jobs)) as pool:
+        # Each robot's runs before calibration, then every (robot, noise seed) chain at once:
+        # the chains are independent, so the pool stays full to the end.
+        chains = [prepare(tmp, pool) for _, prepare in robots]
+        rows = [[pool.submit(chain, ns) for ns in range(a.noise_seeds)] for chain in chains]
+        ok = True
+        for (name, _), futures in zip(robots, rows):
+            ok &= report(name, [f.result() for f in futures], a.goal)
     sys.exit(0 if ok else 1)
-
 
 if __name__ == "__main__":
     main()
