@@ -337,8 +337,8 @@ def _add_reset_args(p):
 
 
 def cmd_serve(args):
-    """The master's USART1 on a pseudo-terminal, in real time (imitates `host-bench
-    virtual-board`: the first line is `port: /dev/pts/N`), and the second `clock: FILE`, the
+    """The master's USART1 on a pseudo-terminal, as `host-bench virtual-board` serves its
+    emulated boards: the first line is `port: /dev/pts/N`, and the second `clock: FILE`, the
     model's simulated time for the host to time its waits by (`host-bench play --clock FILE`)."""
     boards = ("master",) if args.no_slave else ("slave", "master")
     bench = _bench_for(args, boards)

@@ -10,6 +10,8 @@ const BIN: &str = env!("CARGO_BIN_EXE_host-bench");
 struct VirtualBoard {
     child: Child,
     port: String,
+    /// Its clock file, for `--clock` (what it prints on its second line).
+    clock: String,
 }
 
 impl VirtualBoard {
@@ -21,16 +23,18 @@ impl VirtualBoard {
             .stderr(Stdio::null())
             .spawn()
             .expect("spawn virtual-board");
-        let mut first = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut first)
-            .unwrap();
-        let port = first
-            .trim()
-            .strip_prefix("port: ")
-            .unwrap_or_else(|| panic!("first line {first:?}"))
-            .to_string();
-        VirtualBoard { child, port }
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        let mut line = |prefix: &str| {
+            let mut line = String::new();
+            out.read_line(&mut line).unwrap();
+            line.trim()
+                .strip_prefix(prefix)
+                .unwrap_or_else(|| panic!("{line:?}: not {prefix:?}"))
+                .to_string()
+        };
+        let port = line("port: ");
+        let clock = line("clock: ");
+        VirtualBoard { child, port, clock }
     }
 }
 
@@ -274,6 +278,23 @@ fn virtual_board_refuses_a_robot_the_slave_board_cannot_read() {
 }
 
 #[test]
+fn a_virtual_board_speed_out_of_range_is_refused_before_a_port_is_offered() {
+    for speed in ["0", "101", "nan"] {
+        let out = Command::new(BIN)
+            .args(["virtual-board", "--speed", speed])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "--speed {speed}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--speed") && err.contains("0.01 to 100"),
+            "{err}"
+        );
+        assert!(out.stdout.is_empty(), "no port is offered");
+    }
+}
+
+#[test]
 fn a_patience_out_of_range_is_refused_naming_it() {
     let dir = tempfile::tempdir().unwrap();
     let ticks = dir.path().join("line.csv");
@@ -455,10 +476,20 @@ fn calibrate_drives_umbmarks_squares_on_the_bench_and_uploads_the_corrected_robo
     let nominal = small_axle_robot(dir.path(), false);
     let truly = small_axle_robot(dir.path(), true);
     let (nominal, truly) = (nominal.to_str().unwrap(), truly.to_str().unwrap());
-    let board =
-        VirtualBoard::start(&["--robot", nominal, "--true-robot", truly, "--master-drives"]);
+    // Five times real time, the host on the board's clock: the same squares in a fifth of the
+    // wall time.
+    let board = VirtualBoard::start(&[
+        "--robot",
+        nominal,
+        "--true-robot",
+        truly,
+        "--master-drives",
+        "--speed",
+        "5",
+    ]);
     let out = Command::new(BIN)
         .args(["calibrate", "--robot", nominal, "--port", &board.port])
+        .args(["--clock", &board.clock])
         .args(["--side", "0.7", "--each", "1", "--upload", "--json"])
         .arg("--drive-squares")
         .arg(&runs)
@@ -513,9 +544,17 @@ fn calibrate_on_a_board_without_truth_asks_the_person_at_the_bench() {
     let runs = dir.path().join("squares");
     let nominal = small_axle_robot(dir.path(), false);
     let nominal = nominal.to_str().unwrap();
-    let board = VirtualBoard::start(&["--robot", nominal, "--master-drives", "--no-truth"]);
+    let board = VirtualBoard::start(&[
+        "--robot",
+        nominal,
+        "--master-drives",
+        "--no-truth",
+        "--speed",
+        "5",
+    ]);
     let mut child = Command::new(BIN)
         .args(["calibrate", "--robot", nominal, "--port", &board.port])
+        .args(["--clock", &board.clock])
         .args(["--side", "0.7", "--each", "1", "--json"])
         .arg("--drive-squares")
         .arg(&runs)

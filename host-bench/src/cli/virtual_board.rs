@@ -1,5 +1,5 @@
-//! `host-bench virtual-board`: both boards emulated in real time behind a pseudo-terminal,
-//! for `play` and `record` without boards.
+//! `host-bench virtual-board`: both boards emulated in real time (or at `--speed`) behind a
+//! pseudo-terminal, for `play`, `record` and `calibrate` without boards.
 
 use std::path::{Path, PathBuf};
 
@@ -160,6 +160,11 @@ pub struct VirtualBoardArgs {
     /// noise: every time that byte passes).
     #[arg(long, value_name = "OFFSET")]
     pub fault_spi_event_bit: Option<u32>,
+    /// Run the emulated boards X times as fast as real time (0.01 to 100). The host's waits
+    /// and paces are spans of the boards' time: off 1, give `play`, `record` and `calibrate`
+    /// `--clock FILE`, the file this prints after `clock: `, so they take their time from it.
+    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    pub speed: f64,
     #[command(flatten)]
     pub view: ViewArgs,
 }
@@ -238,6 +243,13 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     }
     opts.adapter.latency = embassy_time::Duration::from_millis(a.link_latency_ms.into());
     opts.faults.spi.event_bit = a.fault_spi_event_bit;
+    if !(0.01..=100.0).contains(&a.speed) {
+        bail!(
+            "--speed is simulated seconds per wall second, 0.01 to 100: got {}",
+            a.speed
+        );
+    }
+    opts.speed = a.speed;
     if let Some(v) = a.course_speed {
         if !(v > 0.0 && v <= 1.0) {
             bail!("--course-speed is the robot's speed round its course, over 0 and at most 1 m/s: got {v}");
@@ -334,8 +346,11 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             .context("installing the Ctrl-C handler")?;
     }
     let (pty, _slave_end, name) = virtual_board::open_pty()?;
-    // The first line is the port, for scripts: `port: /dev/pts/N`.
+    let clock = host_bench::serial::clock::ClockFile::create()?;
+    // The first line is the port, for scripts: `port: /dev/pts/N`; the second the clock file,
+    // as the chip model's `serve` prints them.
     println!("port: {name}");
+    println!("clock: {}", clock.path().display());
     use std::io::Write;
     std::io::stdout().flush()?;
     let truly = a.true_robot.as_ref().map_or(String::new(), |p| {
@@ -349,13 +364,23 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             opts.course_side, opts.course_speed
         )
     };
-    eprintln!("virtual board (robot {robot_name}{truly}, {driven}) serving; Ctrl-C ends it");
+    let pace = if a.speed == 1.0 {
+        "in real time".to_string()
+    } else {
+        format!(
+            "at {}x real time (give the host --clock {})",
+            a.speed,
+            clock.path().display()
+        )
+    };
+    eprintln!("virtual board (robot {robot_name}{truly}, {driven}) serving {pace}; Ctrl-C ends it");
     let view = outputs.view.borrow().is_on().then_some(&outputs.view);
     virtual_board::serve(
         pty,
         &opts,
         &|| stop.load(std::sync::atomic::Ordering::Relaxed),
         view,
+        Some(&clock),
     )?;
     if let Some(p) = outputs.finish()? {
         eprintln!("wrote {}", p.display());

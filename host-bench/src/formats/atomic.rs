@@ -115,6 +115,20 @@ pub fn remove_partials_on_signals() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A scratch file in a folder of its own that a signal removes with the folder, as it removes
+/// the temporary files being written (the clock file of `virtual-board`, which serves until it
+/// is killed). [`forget_scratch`] when the owner removes them itself.
+pub fn remove_scratch_on_signals(file: &Path, dir: &Path) {
+    partials().push(file.to_path_buf());
+    new_dirs().push(dir.to_path_buf());
+}
+
+/// The scratch file and folder of [`remove_scratch_on_signals`] are no longer the signal's.
+pub fn forget_scratch(file: &Path, dir: &Path) {
+    partials().retain(|p| p != file);
+    new_dirs().retain(|d| d != dir);
+}
+
 /// While alive, Ctrl-C does not end the process: its owner (`record`, which stops and then
 /// writes its file) watches a flag of its own instead.
 pub struct OwnCtrlC(());

@@ -9,7 +9,8 @@
 //! its time from the model itself, from the file the model keeps its simulated time in: every
 //! wait, every pace and every duration the host reports is then in the boards' own time,
 //! whatever speed the model runs at, and the host behaves towards the modelled boards as it
-//! would towards real ones.
+//! would towards real ones. `host-bench virtual-board` writes one too ([`ClockFile`]), and
+//! with `--speed` runs its emulated boards faster or slower than real time.
 //!
 //! One clock per process, chosen before the link opens ([`use_model_clock`]), as embassy-time
 //! has one time driver per build: the link, the session and the jobs read it through
@@ -267,6 +268,59 @@ fn read(file: &mut File) -> std::io::Result<Reading> {
     Ok(Reading::Unsettled)
 }
 
+/// The writing end of a clock file, for a model of the boards in this process (`host-bench
+/// virtual-board`): a file of its own in a folder of its own, both removed when it is
+/// dropped. Each [`ClockFile::set`] rewrites the time in place; a reader that catches a write
+/// half done reads two values that differ and reads again ([`read`]).
+pub struct ClockFile {
+    file: File,
+    path: PathBuf,
+    // Removed on drop, the file with it.
+    _dir: tempfile::TempDir,
+}
+
+impl ClockFile {
+    /// A new clock file at time zero.
+    pub fn create() -> Result<ClockFile> {
+        let dir = tempfile::Builder::new()
+            .prefix("host-bench-clock-")
+            .tempdir()
+            .context("creating a folder for the clock file")?;
+        let path = dir.path().join("clock");
+        let mut file = File::create(&path)
+            .with_context(|| format!("creating the clock file {}", path.display()))?;
+        // A process killed while it serves leaves no clock behind.
+        crate::formats::atomic::remove_scratch_on_signals(&path, dir.path());
+        std::io::Write::write_all(&mut file, &clock_file_bytes(0))
+            .with_context(|| format!("writing the clock file {}", path.display()))?;
+        Ok(ClockFile {
+            file,
+            path,
+            _dir: dir,
+        })
+    }
+
+    /// Where the file is: what `--clock` takes.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The model's time is now `ns`.
+    pub fn set(&self, ns: u64) -> Result<()> {
+        use std::os::unix::fs::FileExt;
+        self.file
+            .write_all_at(&ns.to_le_bytes(), MAGIC.len() as u64)
+            .with_context(|| format!("writing the clock file {}", self.path.display()))
+    }
+}
+
+impl Drop for ClockFile {
+    fn drop(&mut self) {
+        // The folder goes with `_dir`, after this.
+        crate::formats::atomic::forget_scratch(&self.path, self._dir.path());
+    }
+}
+
 /// A clock file's 16 bytes for the time `ns` (for tests, and tools that model boards).
 pub fn clock_file_bytes(ns: u64) -> [u8; 16] {
     let mut b = [0u8; 16];
@@ -337,6 +391,18 @@ mod tests {
         // The model goes on from where it stopped: the clock does not go back.
         rewrite_in_place(&path, 1_000_000_001);
         assert!(clock.now() >= Duration::from_secs(1) + on);
+    }
+
+    #[test]
+    fn a_clock_file_written_here_is_read_as_written_and_removed_when_dropped() {
+        let writer = ClockFile::create().unwrap();
+        let mut clock = ModelClock::open(writer.path()).unwrap();
+        assert_eq!(clock.now(), Duration::ZERO);
+        writer.set(2_500_000_000).unwrap();
+        assert_eq!(clock.now(), Duration::from_millis(2_500));
+        let path = writer.path().to_path_buf();
+        drop(writer);
+        assert!(!path.exists() && !path.parent().unwrap().exists());
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! `host-bench virtual-board`: both boards' firmware, emulated as `emulate` does, behind a
-//! pseudo-terminal, in real time, so `play` and `record` talk to it exactly as to real boards.
+//! pseudo-terminal, in real time, so `play` and `record` talk to it exactly as to real boards
+//! (or at another speed, [`Options::speed`], with the host on its clock file).
 //!
 //! ```text
 //!  play/record ── /dev/pts/N ══ pty ══ bridge ── UartLine x2 (115200 8N1) ──► firmware_master::tasks ── SpiWire ──► firmware_slave::run
@@ -45,6 +46,7 @@ use super::emulator::hw::*;
 use super::master_tasks::{spawn_master, MasterPorts};
 use super::plant::{MeasuringSensors, Plant, PlantConfig};
 use super::serial_noise::{Receiver, SerialFaults, SerialNoise};
+use crate::serial::clock::ClockFile;
 use robot_math::motor::DcMotor;
 
 /// Fault knobs of the virtual board (for tests of the host's checks and of the links).
@@ -90,7 +92,14 @@ pub struct Options {
     /// The USB-serial adapter between the pseudo-terminal and the master: its top rate and
     /// latency timer.
     pub adapter: super::adapter::AdapterSpec,
+    /// Simulated seconds per wall second: 1 is real time. Off 1, the host must take the
+    /// board's time from its clock file (`serve`'s `clock`), or every wait of its is off by
+    /// this factor.
+    pub speed: f64,
 }
+
+/// The most simulated time [`serve`] runs between two looks at the line.
+const MOST_PER_PASS: Duration = Duration::from_millis(10);
 
 /// A robot's driven wheels and their motors, as they really are.
 #[derive(Clone, Copy, Debug)]
@@ -121,6 +130,7 @@ impl Options {
             master_drives: None,
             send_truth: true,
             adapter: super::adapter::AdapterSpec::default(),
+            speed: 1.0,
         }
     }
 }
@@ -263,6 +273,7 @@ pub fn serve(
     opts: &Options,
     stop: &dyn Fn() -> bool,
     view: Option<&RefCell<crate::viewer::View>>,
+    clock: Option<&ClockFile>,
 ) -> Result<()> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     let sensors =
@@ -391,8 +402,11 @@ pub fn serve(
     let mut buf = [0u8; 4096];
     sim.run_until_idle();
     while !stop() {
-        // Catch the virtual clock up with the wall clock.
-        let target = Instant::from_micros(wall.elapsed().as_micros() as u64);
+        // Catch the virtual clock up with the wall clock (times the speed), by at most
+        // `MOST_PER_PASS` a pass: an emulation slower than the speed asked for then runs as
+        // fast as it can and still serves the line between, on its own clock.
+        let target = Instant::from_micros((wall.elapsed().as_secs_f64() * opts.speed * 1e6) as u64)
+            .min(sim.now() + MOST_PER_PASS);
         while sim.now() < target {
             let now = sim.now();
             if let Some(course) = course.as_mut().filter(|_| now >= next_course) {
@@ -409,6 +423,10 @@ pub fn serve(
                 .borrow_mut()
                 .advance_us(now.as_micros(), next.as_micros(), 100e-6);
             sim.run_until(next);
+        }
+        // The time, before the step's bytes reach the host: what it reads is never ahead of it.
+        if let Some(clock) = clock {
+            clock.set(sim.now().as_micros() * 1_000)?;
         }
         // The rate the host set on its end of the line, and the master's.
         let host_rate = serialport::SerialPort::baud_rate(&pty).unwrap_or(0);

@@ -25,7 +25,8 @@ impl Board {
         let s = stop.clone();
         let thread = std::thread::spawn(move || {
             let _keep = slave_end;
-            virtual_board::serve(pty, &opts, &|| s.load(Ordering::Relaxed), None).expect("serve");
+            virtual_board::serve(pty, &opts, &|| s.load(Ordering::Relaxed), None, None)
+                .expect("serve");
         });
         Board {
             port,
