@@ -213,7 +213,7 @@ def main():
     ap.add_argument("--seeds", type=int, default=5, help="squares each way (power-on seeds)")
     ap.add_argument("--noise-seeds", type=int, default=5, help="draws of the measuring noise")
     ap.add_argument("--goal", type=float, default=0, help="least cut of E_max,syst, or exit 1")
-    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+    ap.add_argument("--jobs", type=int, default=len(os.sched_getaffinity(0)),
                     help="host-bench runs at a time (default: one per core)")
     a = ap.parse_args()
     robots = [
@@ -233,11 +233,16 @@ def main():
             concurrent.futures.ThreadPoolExecutor(max(1, a.jobs)) as pool:
         # Each robot's runs before calibration, then every (robot, noise seed) chain at once:
         # the chains are independent, so the pool stays full to the end.
-        chains = [prepare(tmp, pool) for _, prepare in robots]
-        rows = [[pool.submit(chain, ns) for ns in range(a.noise_seeds)] for chain in chains]
-        ok = True
-        for (name, _), futures in zip(robots, rows):
-            ok &= report(name, [f.result() for f in futures], a.goal)
+        try:
+            chains = [prepare(tmp, pool) for _, prepare in robots]
+            rows = [[pool.submit(chain, ns) for ns in range(a.noise_seeds)] for chain in chains]
+            ok = True
+            for (name, _), futures in zip(robots, rows):
+                ok &= report(name, [f.result() for f in futures], a.goal)
+        except BaseException:
+            # A failed run, or Ctrl-C: the runs not started yet are not started.
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
     sys.exit(0 if ok else 1)
 
 if __name__ == "__main__":

@@ -257,7 +257,7 @@ enum Command {
     Play(cli::serial::PlayArgs),
     /// Record the slave's encoders (and poses) into a tick stream over the serial link.
     Record(cli::serial::RecordArgs),
-    /// Both boards emulated behind a pseudo-terminal, in real time (or --speed X): prints
+    /// Both boards emulated behind a pseudo-terminal, in real time (or --time-scale X): prints
     /// `port: /dev/pts/N`, then `clock: FILE` (its time, for `--clock`), and serves `play`,
     /// `record` and `calibrate` until killed.
     VirtualBoard(cli::virtual_board::VirtualBoardArgs),

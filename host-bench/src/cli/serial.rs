@@ -30,12 +30,13 @@ pub struct PortArgs {
     /// Wait this many times longer for the board (1 to 100): the handshake's and each
     /// setting's 3 s, play's 5 s without progress, the 50 ms before unacknowledged events are
     /// sent again. For a board slower than real time that has no clock to give (the chip model
-    /// has: `--clock`).
+    /// and `virtual-board` have: `--clock`).
     #[arg(long, value_name = "FACTOR", default_value_t = 1)]
     pub patience: u32,
     /// Take the host's time from a board model's clock file (the `clock: FILE` line that
-    /// `scripts/board-model serve` prints) instead of the wall clock: every wait, pace and
-    /// duration is then in the modelled boards' own time, whatever speed the model runs at.
+    /// `scripts/board-model serve` or `host-bench virtual-board` prints) instead of the wall
+    /// clock: every wait, pace and duration is then in the modelled boards' own time, whatever
+    /// speed the model runs at.
     #[arg(long, value_name = "FILE")]
     pub clock: Option<PathBuf>,
 }

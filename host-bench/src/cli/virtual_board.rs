@@ -1,4 +1,4 @@
-//! `host-bench virtual-board`: both boards emulated in real time (or at `--speed`) behind a
+//! `host-bench virtual-board`: both boards emulated in real time (or at `--time-scale`) behind a
 //! pseudo-terminal, for `play`, `record` and `calibrate` without boards.
 
 use std::path::{Path, PathBuf};
@@ -160,11 +160,12 @@ pub struct VirtualBoardArgs {
     /// noise: every time that byte passes).
     #[arg(long, value_name = "OFFSET")]
     pub fault_spi_event_bit: Option<u32>,
-    /// Run the emulated boards X times as fast as real time (0.01 to 100). The host's waits
-    /// and paces are spans of the boards' time: off 1, give `play`, `record` and `calibrate`
-    /// `--clock FILE`, the file this prints after `clock: `, so they take their time from it.
+    /// Run the emulated boards X times as fast as real time (0.01 to 100; as fast as the
+    /// emulation goes, if that is slower). The host's waits and paces are spans of the boards'
+    /// time: off 1, give `play`, `record` and `calibrate` `--clock FILE`, the file this prints
+    /// after `clock: `, so they take their time from it.
     #[arg(long, value_name = "X", default_value_t = 1.0)]
-    pub speed: f64,
+    pub time_scale: f64,
     #[command(flatten)]
     pub view: ViewArgs,
 }
@@ -243,13 +244,13 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
     }
     opts.adapter.latency = embassy_time::Duration::from_millis(a.link_latency_ms.into());
     opts.faults.spi.event_bit = a.fault_spi_event_bit;
-    if !(0.01..=100.0).contains(&a.speed) {
+    if !(0.01..=100.0).contains(&a.time_scale) {
         bail!(
-            "--speed is simulated seconds per wall second, 0.01 to 100: got {}",
-            a.speed
+            "--time-scale is simulated seconds per wall second, 0.01 to 100: got {}",
+            a.time_scale
         );
     }
-    opts.speed = a.speed;
+    opts.time_scale = a.time_scale;
     if let Some(v) = a.course_speed {
         if !(v > 0.0 && v <= 1.0) {
             bail!("--course-speed is the robot's speed round its course, over 0 and at most 1 m/s: got {v}");
@@ -364,12 +365,12 @@ pub fn run_virtual_board(a: VirtualBoardArgs) -> Result<()> {
             opts.course_side, opts.course_speed
         )
     };
-    let pace = if a.speed == 1.0 {
+    let pace = if a.time_scale == 1.0 {
         "in real time".to_string()
     } else {
         format!(
             "at {}x real time (give the host --clock {})",
-            a.speed,
+            a.time_scale,
             clock.path().display()
         )
     };

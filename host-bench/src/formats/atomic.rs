@@ -115,18 +115,64 @@ pub fn remove_partials_on_signals() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A scratch file in a folder of its own that a signal removes with the folder, as it removes
-/// the temporary files being written (the clock file of `virtual-board`, which serves until it
-/// is killed). [`forget_scratch`] when the owner removes them itself.
-pub fn remove_scratch_on_signals(file: &Path, dir: &Path) {
-    partials().push(file.to_path_buf());
-    new_dirs().push(dir.to_path_buf());
+/// A file in a folder of its own, both removed when it is dropped and, as the temporary files
+/// being written are, by a signal: for a process that serves until it is killed
+/// (`virtual-board`'s clock file).
+pub struct ScratchFile {
+    file: std::fs::File,
+    path: PathBuf,
+    dir: Option<tempfile::TempDir>,
 }
 
-/// The scratch file and folder of [`remove_scratch_on_signals`] are no longer the signal's.
-pub fn forget_scratch(file: &Path, dir: &Path) {
-    partials().retain(|p| p != file);
-    new_dirs().retain(|d| d != dir);
+impl ScratchFile {
+    /// `NAME` in a new folder `PREFIX...` under the system's temporary folder, holding `bytes`.
+    pub fn create(prefix: &str, name: &str, bytes: &[u8]) -> anyhow::Result<Self> {
+        use std::io::Write;
+        // Made and listed under the locks the signal's sweep takes (in its order), so a
+        // signal finds both listed or neither made.
+        let mut files = partials();
+        let mut dirs = new_dirs();
+        let dir = tempfile::Builder::new()
+            .prefix(prefix)
+            .tempdir()
+            .context("cannot create a temporary folder")?;
+        let path = dir.path().join(name);
+        dirs.push(dir.path().to_path_buf());
+        files.push(path.clone());
+        let made = std::fs::File::create(&path).and_then(|mut f| f.write_all(bytes).map(|_| f));
+        match made {
+            Ok(file) => Ok(ScratchFile {
+                file,
+                path,
+                dir: Some(dir),
+            }),
+            Err(e) => {
+                files.retain(|p| *p != path);
+                dirs.retain(|d| d != dir.path());
+                Err(e).with_context(|| format!("cannot write {}", path.display()))
+            }
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn file(&self) -> &std::fs::File {
+        &self.file
+    }
+}
+
+impl Drop for ScratchFile {
+    fn drop(&mut self) {
+        // Removed first, then no longer the signal's: a signal between finds nothing to do.
+        if let Some(dir) = self.dir.take() {
+            let gone = dir.path().to_path_buf();
+            let _ = dir.close();
+            partials().retain(|p| *p != self.path);
+            new_dirs().retain(|d| *d != gone);
+        }
+    }
 }
 
 /// While alive, Ctrl-C does not end the process: its owner (`record`, which stops and then

@@ -10,7 +10,7 @@
 //! wait, every pace and every duration the host reports is then in the boards' own time,
 //! whatever speed the model runs at, and the host behaves towards the modelled boards as it
 //! would towards real ones. `host-bench virtual-board` writes one too ([`ClockFile`]), and
-//! with `--speed` runs its emulated boards faster or slower than real time.
+//! with `--time-scale` runs its emulated boards faster or slower than real time.
 //!
 //! One clock per process, chosen before the link opens ([`use_model_clock`]), as embassy-time
 //! has one time driver per build: the link, the session and the jobs read it through
@@ -31,6 +31,8 @@ use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
+
+use crate::formats::atomic::ScratchFile;
 
 /// The clock file's first 8 bytes.
 pub const MAGIC: &[u8; 8] = b"OMNICLK1";
@@ -173,8 +175,8 @@ impl ModelClock {
         }
         let mut file = File::open(path).with_context(|| {
             format!(
-                "cannot open the clock file {}: pass the path `scripts/board-model serve` \
-                 printed after `clock: `",
+                "cannot open the clock file {}: pass the path `host-bench virtual-board` or \
+                 `scripts/board-model serve` printed after `clock: `",
                 path.display()
             )
         })?;
@@ -270,54 +272,31 @@ fn read(file: &mut File) -> std::io::Result<Reading> {
 
 /// The writing end of a clock file, for a model of the boards in this process (`host-bench
 /// virtual-board`): a file of its own in a folder of its own, both removed when it is
-/// dropped. Each [`ClockFile::set`] rewrites the time in place; a reader that catches a write
-/// half done reads two values that differ and reads again ([`read`]).
-pub struct ClockFile {
-    file: File,
-    path: PathBuf,
-    // Removed on drop, the file with it.
-    _dir: tempfile::TempDir,
-}
+/// dropped, and by a signal ([`ScratchFile`]). Each [`ClockFile::set`] rewrites the time in
+/// place; a reader that catches a write half done reads two values that differ and reads
+/// again ([`read`]).
+pub struct ClockFile(ScratchFile);
 
 impl ClockFile {
     /// A new clock file at time zero.
     pub fn create() -> Result<ClockFile> {
-        let dir = tempfile::Builder::new()
-            .prefix("host-bench-clock-")
-            .tempdir()
-            .context("creating a folder for the clock file")?;
-        let path = dir.path().join("clock");
-        let mut file = File::create(&path)
-            .with_context(|| format!("creating the clock file {}", path.display()))?;
-        // A process killed while it serves leaves no clock behind.
-        crate::formats::atomic::remove_scratch_on_signals(&path, dir.path());
-        std::io::Write::write_all(&mut file, &clock_file_bytes(0))
-            .with_context(|| format!("writing the clock file {}", path.display()))?;
-        Ok(ClockFile {
-            file,
-            path,
-            _dir: dir,
-        })
+        ScratchFile::create("host-bench-clock-", "clock", &clock_file_bytes(0))
+            .map(ClockFile)
+            .context("creating the clock file")
     }
 
     /// Where the file is: what `--clock` takes.
     pub fn path(&self) -> &Path {
-        &self.path
+        self.0.path()
     }
 
     /// The model's time is now `ns`.
     pub fn set(&self, ns: u64) -> Result<()> {
         use std::os::unix::fs::FileExt;
-        self.file
+        self.0
+            .file()
             .write_all_at(&ns.to_le_bytes(), MAGIC.len() as u64)
-            .with_context(|| format!("writing the clock file {}", self.path.display()))
-    }
-}
-
-impl Drop for ClockFile {
-    fn drop(&mut self) {
-        // The folder goes with `_dir`, after this.
-        crate::formats::atomic::forget_scratch(&self.path, self._dir.path());
+            .with_context(|| format!("writing the clock file {}", self.path().display()))
     }
 }
 

@@ -1,6 +1,6 @@
 //! Driving the robot along a path through the master, over the serial link: the path's
 //! reference sent as `Track` samples every [`SAMPLE_PERIOD`], as `emulate`'s host sends them
-//! on virtual time, here on the wall clock. The master tracks them with the robot's own law
+//! on virtual time, here on the host's clock (the wall's, or a board model's: `--clock`). The master tracks them with the robot's own law
 //! (seed 002's point A ahead of a differential drive's axle; an omni robot's reference
 //! point), steered by the slave's odometry: a robot driven so goes where its odometry says
 //! the path is, which is what UMBmark asks.

@@ -1,6 +1,6 @@
 //! `host-bench virtual-board`: both boards' firmware, emulated as `emulate` does, behind a
 //! pseudo-terminal, in real time, so `play` and `record` talk to it exactly as to real boards
-//! (or at another speed, [`Options::speed`], with the host on its clock file).
+//! (or faster or slower, [`Options::time_scale`], with the host on its clock file).
 //!
 //! ```text
 //!  play/record ── /dev/pts/N ══ pty ══ bridge ── UartLine x2 (115200 8N1) ──► firmware_master::tasks ── SpiWire ──► firmware_slave::run
@@ -95,7 +95,7 @@ pub struct Options {
     /// Simulated seconds per wall second: 1 is real time. Off 1, the host must take the
     /// board's time from its clock file (`serve`'s `clock`), or every wait of its is off by
     /// this factor.
-    pub speed: f64,
+    pub time_scale: f64,
 }
 
 /// The most simulated time [`serve`] runs between two looks at the line.
@@ -130,7 +130,7 @@ impl Options {
             master_drives: None,
             send_truth: true,
             adapter: super::adapter::AdapterSpec::default(),
-            speed: 1.0,
+            time_scale: 1.0,
         }
     }
 }
@@ -265,9 +265,11 @@ pub fn open_pty() -> Result<(TTYPort, TTYPort, String)> {
     Ok((master, slave, name))
 }
 
-/// Serve on `pty` until `stop` says so (forever for the CLI).
-/// Serves `pty` until `stop()` says so. `view` (`--mcap`, `--live`) is shown the run every
-/// 10 ms of its time: the channels of [`crate::viewer::topics::emulate_channels`] with `/link`.
+/// Serves `pty` until `stop()` says so (forever for the CLI). `view` (`--mcap`, `--live`) is
+/// shown the run every 10 ms of its time: the channels of
+/// [`crate::viewer::topics::emulate_channels`] with `/link`. `clock`, if any, is given the
+/// boards' time before each pass hands the host its bytes (`--clock` takes the file): at
+/// `opts.time_scale` other than 1 the host must take it.
 pub fn serve(
     mut pty: TTYPort,
     opts: &Options,
@@ -387,6 +389,9 @@ pub fn serve(
     }
 
     let wall = WallInstant::now();
+    // Where the boards' time is due by the wall's.
+    let due =
+        || Instant::from_micros((wall.elapsed().as_secs_f64() * opts.time_scale * 1e6) as u64);
     let plant_step = Duration::from_micros(100);
     let course_every = Duration::from_millis(10);
     // Never, when the master drives.
@@ -402,11 +407,12 @@ pub fn serve(
     let mut buf = [0u8; 4096];
     sim.run_until_idle();
     while !stop() {
-        // Catch the virtual clock up with the wall clock (times the speed), by at most
-        // `MOST_PER_PASS` a pass: an emulation slower than the speed asked for then runs as
+        // Catch the virtual clock up with the wall clock (times the time scale), by at most
+        // `MOST_PER_PASS` a pass: an emulation slower than the scale asked for then runs as
         // fast as it can and still serves the line between, on its own clock.
-        let target = Instant::from_micros((wall.elapsed().as_secs_f64() * opts.speed * 1e6) as u64)
-            .min(sim.now() + MOST_PER_PASS);
+        let due_now = due();
+        let target = due_now.min(sim.now() + MOST_PER_PASS);
+        let behind = due_now > target;
         while sim.now() < target {
             let now = sim.now();
             if let Some(course) = course.as_mut().filter(|_| now >= next_course) {
@@ -432,8 +438,14 @@ pub fn serve(
         let host_rate = serialport::SerialPort::baud_rate(&pty).unwrap_or(0);
         let rate = master_rate.get();
         let now = sim.now();
-        // Host -> master: whatever the pty has, through the adapter at the line's pace.
-        match pty.read(&mut buf) {
+        // Host -> master: whatever the pty has, through the adapter at the line's pace. Read
+        // only what is there: a read that waits for bytes would cap the speed.
+        let waiting = serialport::SerialPort::bytes_to_read(&pty).unwrap_or(1);
+        match if waiting > 0 {
+            pty.read(&mut buf)
+        } else {
+            Ok(0)
+        } {
             Ok(n) if n > 0 => {
                 bytes_from_host += n as u64;
                 adapter.from_host(&buf[..n])
@@ -506,7 +518,10 @@ pub fn serve(
                 }),
             )?;
         }
-        std::thread::sleep(WallDuration::from_micros(500));
+        // Caught up with the wall (times the time scale): wait a little. Behind it, on at once.
+        if !behind {
+            std::thread::sleep(WallDuration::from_micros(500));
+        }
     }
     Ok(())
 }
